@@ -1,0 +1,124 @@
+/* The shared FMI framework: instance layout, variable table types and the interface every model
+ * implements in its physics.c. The framework is compiled once per FMU, against that FMU's
+ * generated model_description.h, so array sizes and value references are compile-time constants. */
+#ifndef FRAMEWORK_H
+#define FRAMEWORK_H
+
+#include <math.h> /* INFINITY in the generated variable table */
+#include <stdint.h>
+
+#include "fmi2_api.h"
+
+typedef enum {
+    CAUSALITY_PARAMETER, CAUSALITY_CALCULATED_PARAMETER, CAUSALITY_INPUT, CAUSALITY_OUTPUT,
+    CAUSALITY_LOCAL, CAUSALITY_INDEPENDENT
+} Causality;
+typedef enum {
+    VARIABILITY_CONSTANT, VARIABILITY_FIXED, VARIABILITY_TUNABLE, VARIABILITY_DISCRETE, VARIABILITY_CONTINUOUS
+} Variability;
+typedef enum { INITIAL_EXACT, INITIAL_APPROX, INITIAL_CALCULATED } Initial;
+
+typedef struct {
+    const char *name;
+    Causality causality;
+    Variability variability;
+    Initial initial;
+    int has_start;
+    double start, min, max;
+} VariableInfo;
+
+#include "model_description.h"
+#include "physics.h"
+
+/* Sizes that stay legal C for a model without states or inputs (the Spring). */
+#define STATE_SLOTS (N_STATES > 0 ? N_STATES : 1)
+#define INPUT_SLOTS (N_INPUTS > 0 ? N_INPUTS : 1)
+#define INTEGER_SLOTS (N_INTEGER > 0 ? N_INTEGER : 1)
+#define AB_MAX_STEPS 6
+
+/* States of the FMI 2.0 state machines (CS and ME share one bit set). */
+enum {
+    MS_INSTANTIATED = 1 << 0,
+    MS_INITIALIZATION = 1 << 1,
+    MS_STEP_COMPLETE = 1 << 2,
+    MS_STEP_FAILED = 1 << 3,
+    MS_EVENT = 1 << 4,
+    MS_CONTINUOUS = 1 << 5,
+    MS_TERMINATED = 1 << 6,
+    MS_ERROR = 1 << 7
+};
+
+/* Integrator memory that must survive between fmi2DoStep calls. */
+typedef struct {
+    uint64_t n_rhs, n_steps, n_rejected;
+    double ab_history[AB_MAX_STEPS][STATE_SLOTS]; /* past right-hand sides, ring buffer */
+    int32_t ab_count;                              /* valid entries in ab_history */
+    int32_t ab_head;                               /* slot of the newest entry */
+    double ab_step;                                /* substep the history was taken with */
+    double rkf_proposal;                           /* rkf45: next step size, 0 = start from h */
+} IntegratorMemory;
+
+/* Everything that makes up the FMU state: plain numbers only, so it serializes as bytes and
+ * restores in another process. */
+typedef struct {
+    double time;
+    double last_successful_time;
+    double real[N_REAL];
+    int32_t integer[INTEGER_SLOTS];
+    double input_derivative[INPUT_SLOTS]; /* first derivatives of the inputs, for the next step */
+    int32_t machine_state;
+    IntegratorMemory integrator;
+} SimState;
+
+typedef struct {
+    SimState s;
+    ModelConst constants;   /* derived from the parameters by model_prepare */
+    int constants_valid;
+    int outputs_valid;      /* calculated outputs in s.real match the state */
+    fmi2Type type;
+    char *name;
+    fmi2CallbackLogger logger;
+    fmi2CallbackAllocateMemory allocate;
+    fmi2CallbackFreeMemory release;
+    fmi2ComponentEnvironment environment;
+    int logging_on;
+} Instance;
+
+/* Logging: errors and discards are always reported; the rest only with debug logging on. */
+void log_error(Instance *inst, const char *fmt, ...);
+void log_discard(Instance *inst, const char *fmt, ...);
+void log_debug(Instance *inst, const char *fmt, ...);
+
+/* The current inputs, gathered into a contiguous array. */
+void gather_inputs(const Instance *inst, double *u);
+
+/* stepper.c: fmi2DoStep's integration from s.time to t + H. */
+fmi2Status step_to(Instance *inst, double t, double H);
+void restart_integrator(Instance *inst);
+
+/* ---- implemented by each model in its physics.c ---- */
+
+/* Derived constants from the parameters (called after initialization and after a tunable change). */
+void model_prepare(const double *real, const int32_t *integer, ModelConst *c);
+/* Constraints that span several parameters; returns 0 when fine, else writes a message. */
+int model_check_parameters(const double *real, char *message, size_t size);
+#if N_STATES > 0
+/* dx = f(x, u). */
+void model_derivatives(const ModelConst *c, const double *x, const double *u, double *dx);
+/* 0 when x is non-finite or a singular configuration. */
+int model_state_ok(const ModelConst *c, const double *x);
+/* Closed-form step over H with inputs u held; returns 0 when the model has none in this configuration. */
+int model_closed_form_step(const ModelConst *c, double H, const double *u, double *x);
+#endif
+/* Write all calculated outputs into real[], from the states and inputs already in real[] (and the
+ * state derivatives dx, NULL for a model without states); returns 0 at a singular configuration. */
+int model_outputs(const ModelConst *c, const double *dx, double *real);
+/* rate[vr] = exact time derivative of every Real output vr; du are the input derivatives. */
+void model_output_rates(const ModelConst *c, const double *real, const double *dx, const double *du, double *rate);
+/* Advance the inputs over a step of H using their derivatives (and, for positions, velocities). */
+void model_advance_inputs(double *real, const double *du, double H);
+
+/* Default for model_advance_inputs: each input moves with its own first derivative. */
+void advance_inputs_linearly(double *real, const double *du, double H);
+
+#endif

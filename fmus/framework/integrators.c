@@ -1,0 +1,274 @@
+/* The coefficients of every method of thesis chapter 4. Corrections against the printed thesis:
+ * rk3 (4.38): k3 = f(x + h, y - h k1 + 2 h k2); Kutta-Nystrom (4.36): a21 = 1/3, a52 = +10/9,
+ * a62 = +12/25; Adams-Bashforth 6 (4.43): the last term -475 f(k-5) restored. A test checks every
+ * tableau against the Runge-Kutta order conditions and every Adams-Bashforth set against exactness
+ * on polynomials. */
+#include "integrators.h"
+
+const ButcherTableau TABLEAU_EULER = {"euler", 1, 1, {0}, {{0}}, {1}, {0}};
+
+const ButcherTableau TABLEAU_MIDPOINT = {"midpoint", 2, 2, {0, 0.5}, {{0}, {0.5}}, {0, 1}, {0}};
+
+const ButcherTableau TABLEAU_HEUN = {"heun", 2, 2, {0, 1}, {{0}, {1}}, {0.5, 0.5}, {0}};
+
+const ButcherTableau TABLEAU_RK3 = {
+    "rk3", 3, 3, {0, 0.5, 1}, {{0}, {0.5}, {-1, 2}}, {1.0 / 6, 4.0 / 6, 1.0 / 6}, {0}};
+
+const ButcherTableau TABLEAU_RK4 = {
+    "rk4", 4, 4, {0, 0.5, 0.5, 1}, {{0}, {0.5}, {0, 0.5}, {0, 0, 1}},
+    {1.0 / 6, 1.0 / 3, 1.0 / 3, 1.0 / 6}, {0}};
+
+const ButcherTableau TABLEAU_NYSTROM5 = {
+    "nystrom5", 6, 5, {0, 1.0 / 3, 2.0 / 5, 1, 2.0 / 3, 4.0 / 5},
+    {{0},
+     {1.0 / 3},
+     {4.0 / 25, 6.0 / 25},
+     {1.0 / 4, -3, 15.0 / 4},
+     {2.0 / 27, 10.0 / 9, -50.0 / 81, 8.0 / 81},
+     {2.0 / 25, 12.0 / 25, 2.0 / 15, 8.0 / 75}},
+    {23.0 / 192, 0, 125.0 / 192, 0, -81.0 / 192, 125.0 / 192}, {0}};
+
+/* Fehlberg 4(5): the 4th-order solution is propagated, the 5th-order one only estimates the error. */
+const ButcherTableau TABLEAU_RKF45 = {
+    "rkf45", 6, 4, {0, 1.0 / 4, 3.0 / 8, 12.0 / 13, 1, 1.0 / 2},
+    {{0},
+     {1.0 / 4},
+     {3.0 / 32, 9.0 / 32},
+     {1932.0 / 2197, -7200.0 / 2197, 7296.0 / 2197},
+     {439.0 / 216, -8, 3680.0 / 513, -845.0 / 4104},
+     {-8.0 / 27, 2, -3544.0 / 2565, 1859.0 / 4104, -11.0 / 40}},
+    {25.0 / 216, 0, 1408.0 / 2565, 2197.0 / 4104, -1.0 / 5, 0},
+    {16.0 / 135 - 25.0 / 216, 0, 6656.0 / 12825 - 1408.0 / 2565, 28561.0 / 56430 - 2197.0 / 4104,
+     -9.0 / 50 + 1.0 / 5, 2.0 / 55}};
+
+const AdamsBashforth AB2 = {"ab2", 2, {3.0 / 2, -1.0 / 2}, &TABLEAU_RK4};
+const AdamsBashforth AB3 = {"ab3", 3, {23.0 / 12, -16.0 / 12, 5.0 / 12}, &TABLEAU_RK4};
+const AdamsBashforth AB4 = {"ab4", 4, {55.0 / 24, -59.0 / 24, 37.0 / 24, -9.0 / 24}, &TABLEAU_RK4};
+const AdamsBashforth AB5 = {
+    "ab5", 5, {1901.0 / 720, -2774.0 / 720, 2616.0 / 720, -1274.0 / 720, 251.0 / 720}, &TABLEAU_RK4};
+const AdamsBashforth AB6 = {
+    "ab6", 6, {4277.0 / 1440, -7923.0 / 1440, 9982.0 / 1440, -7298.0 / 1440, 2877.0 / 1440, -475.0 / 1440},
+    &TABLEAU_NYSTROM5};
+
+#if N_STATES > 0
+
+#include <math.h>
+#include <string.h>
+
+#if defined(__GNUC__)
+#define ENGINE_INLINE static inline __attribute__((always_inline))
+#else
+#define ENGINE_INLINE static inline
+#endif
+
+ENGINE_INLINE void evaluate(RightHandSide *f, double t, const double *x, double *dx)
+{
+    f->evaluations++;
+    if (f->inputs_vary) {
+        double u[INPUT_SLOTS];
+        int i;
+        for (i = 0; i < N_INPUTS; i++) u[i] = f->u0[i] + (t - f->t0) * f->du[i];
+        model_derivatives(f->model, x, u, dx);
+    } else {
+        model_derivatives(f->model, x, f->u0, dx);
+    }
+}
+
+/* One explicit Runge-Kutta step of tableau tab, in place on x; f0 = f(t, x) is given so that the
+ * Adams-Bashforth start can keep it. Zero coefficients are skipped: with a constant tableau the
+ * compiler removes them. err (optional) receives h * sum(e_j k_j). */
+ENGINE_INLINE void runge_kutta_step(RightHandSide *f, const ButcherTableau *tab, double t, double h, double *x,
+                                    const double *f0, double *err)
+{
+    double k[RK_MAX_STAGES][STATE_SLOTS];
+    double y[STATE_SLOTS];
+    int s, j, i;
+    for (i = 0; i < N_STATES; i++) k[0][i] = f0[i];
+    for (s = 1; s < tab->stages; s++) {
+        for (i = 0; i < N_STATES; i++) {
+            double sum = 0.0;
+            for (j = 0; j < s; j++)
+                if (tab->a[s][j] != 0.0) sum += tab->a[s][j] * k[j][i];
+            y[i] = x[i] + h * sum;
+        }
+        evaluate(f, t + tab->c[s] * h, y, k[s]);
+    }
+    if (err) {
+        for (i = 0; i < N_STATES; i++) {
+            double sum = 0.0;
+            for (j = 0; j < tab->stages; j++)
+                if (tab->e[j] != 0.0) sum += tab->e[j] * k[j][i];
+            err[i] = h * sum;
+        }
+    }
+    for (i = 0; i < N_STATES; i++) {
+        double sum = 0.0;
+        for (j = 0; j < tab->stages; j++)
+            if (tab->b[j] != 0.0) sum += tab->b[j] * k[j][i];
+        x[i] += h * sum;
+    }
+}
+
+ENGINE_INLINE int64_t runge_kutta_loop(RightHandSide *f, const ButcherTableau *tab, double *x, double t0, double hs,
+                                       int64_t n, int check_each)
+{
+    double f0[STATE_SLOTS], saved[STATE_SLOTS];
+    int64_t i;
+    for (i = 0; i < n; i++) {
+        const double t = t0 + (double)i * hs;
+        if (check_each) memcpy(saved, x, sizeof saved);
+        evaluate(f, t, x, f0);
+        runge_kutta_step(f, tab, t, hs, x, f0, NULL);
+        if (check_each && !model_state_ok(f->model, x)) {
+            memcpy(x, saved, sizeof saved);
+            return i;
+        }
+    }
+    return n;
+}
+
+/* Adams-Bashforth: x(k+1) = x(k) + h sum beta_j f(k-j). Until enough history exists the starter
+ * Runge-Kutta method steps, and its first stage, f(k), goes into the history all the same. */
+ENGINE_INLINE int64_t adams_bashforth_loop(RightHandSide *f, const AdamsBashforth *ab, IntegratorMemory *m,
+                                           double *x, double t0, double hs, int64_t n, int check_each)
+{
+    double saved[STATE_SLOTS];
+    IntegratorMemory saved_memory;
+    int64_t i;
+    int j, q;
+    for (i = 0; i < n; i++) {
+        const double t = t0 + (double)i * hs;
+        double *newest;
+        if (check_each) {
+            memcpy(saved, x, sizeof saved);
+            saved_memory = *m;
+        }
+        m->ab_head = (m->ab_head + 1) % AB_MAX_STEPS;
+        newest = m->ab_history[m->ab_head];
+        evaluate(f, t, x, newest);
+        if (m->ab_count < AB_MAX_STEPS) m->ab_count++;
+        if (m->ab_count < ab->steps) {
+            runge_kutta_step(f, ab->starter, t, hs, x, newest, NULL);
+        } else {
+            for (q = 0; q < N_STATES; q++) {
+                double sum = 0.0;
+                for (j = 0; j < ab->steps; j++)
+                    sum += ab->beta[j] * m->ab_history[(m->ab_head - j + AB_MAX_STEPS) % AB_MAX_STEPS][q];
+                x[q] += hs * sum;
+            }
+        }
+        if (check_each && !model_state_ok(f->model, x)) {
+            memcpy(x, saved, sizeof saved);
+            *m = saved_memory;
+            return i;
+        }
+    }
+    return n;
+}
+
+const ButcherTableau *tableau_of(int solver)
+{
+    switch (solver) {
+    case SOLVER_EULER: return &TABLEAU_EULER;
+    case SOLVER_MIDPOINT: return &TABLEAU_MIDPOINT;
+    case SOLVER_HEUN: return &TABLEAU_HEUN;
+    case SOLVER_RK3: return &TABLEAU_RK3;
+    case SOLVER_RK4: return &TABLEAU_RK4;
+    case SOLVER_RKF45: return &TABLEAU_RKF45;
+    case SOLVER_NYSTROM5: return &TABLEAU_NYSTROM5;
+    default: return NULL;
+    }
+}
+
+const AdamsBashforth *adams_bashforth_of(int solver)
+{
+    switch (solver) {
+    case SOLVER_AB2: return &AB2;
+    case SOLVER_AB3: return &AB3;
+    case SOLVER_AB4: return &AB4;
+    case SOLVER_AB5: return &AB5;
+    case SOLVER_AB6: return &AB6;
+    default: return NULL;
+    }
+}
+
+const char *solver_name(int solver)
+{
+    const ButcherTableau *tab = tableau_of(solver);
+    const AdamsBashforth *ab = adams_bashforth_of(solver);
+    return tab ? tab->name : ab ? ab->name : "unknown solver";
+}
+
+int64_t integrate_fixed(RightHandSide *f, int solver, IntegratorMemory *memory, double *x, double t0, double hs,
+                        int64_t n, int check_each)
+{
+    int64_t done;
+    /* One case per method, each with a constant tableau, so that each loop is compiled for its
+     * own coefficients. */
+    switch (solver) {
+    case SOLVER_EULER: done = runge_kutta_loop(f, &TABLEAU_EULER, x, t0, hs, n, check_each); break;
+    case SOLVER_MIDPOINT: done = runge_kutta_loop(f, &TABLEAU_MIDPOINT, x, t0, hs, n, check_each); break;
+    case SOLVER_HEUN: done = runge_kutta_loop(f, &TABLEAU_HEUN, x, t0, hs, n, check_each); break;
+    case SOLVER_RK3: done = runge_kutta_loop(f, &TABLEAU_RK3, x, t0, hs, n, check_each); break;
+    case SOLVER_RK4: done = runge_kutta_loop(f, &TABLEAU_RK4, x, t0, hs, n, check_each); break;
+    case SOLVER_NYSTROM5: done = runge_kutta_loop(f, &TABLEAU_NYSTROM5, x, t0, hs, n, check_each); break;
+    case SOLVER_AB2: done = adams_bashforth_loop(f, &AB2, memory, x, t0, hs, n, check_each); break;
+    case SOLVER_AB3: done = adams_bashforth_loop(f, &AB3, memory, x, t0, hs, n, check_each); break;
+    case SOLVER_AB4: done = adams_bashforth_loop(f, &AB4, memory, x, t0, hs, n, check_each); break;
+    case SOLVER_AB5: done = adams_bashforth_loop(f, &AB5, memory, x, t0, hs, n, check_each); break;
+    case SOLVER_AB6: done = adams_bashforth_loop(f, &AB6, memory, x, t0, hs, n, check_each); break;
+    default: return 0;
+    }
+    memory->n_steps += (uint64_t)done;
+    return done;
+}
+
+double integrate_adaptive(RightHandSide *f, IntegratorMemory *memory, double *x, double t0, double t_end,
+                          double h_initial, double tol)
+{
+    const double smallest = 1e-14 * (fabs(t_end) > 1.0 ? fabs(t_end) : 1.0);
+    double h = memory->rkf_proposal > 0.0 ? memory->rkf_proposal : h_initial;
+    double t = t0;
+    double f0[STATE_SLOTS], y[STATE_SLOTS], err[STATE_SLOTS];
+    int have_f0 = 0, i;
+    while (t < t_end) {
+        const double remaining = t_end - t;
+        const int last = h >= remaining;
+        const double step = last ? remaining : h;
+        double norm = 0.0, factor;
+        int accept;
+        if (!have_f0) {
+            evaluate(f, t, x, f0);
+            have_f0 = 1;
+        }
+        memcpy(y, x, sizeof y);
+        runge_kutta_step(f, &TABLEAU_RKF45, t, step, y, f0, err);
+        for (i = 0; i < N_STATES; i++) {
+            const double scaled = err[i] / (tol * (1.0 + fabs(x[i])));
+            norm += scaled * scaled;
+        }
+        norm = sqrt(norm / N_STATES);
+        accept = norm <= 1.0 && model_state_ok(f->model, y);
+        /* Order-4 error estimate: the step scales with norm^(-1/5), kept within [0.2, 5]. */
+        factor = norm > 0.0 ? 0.9 * pow(norm, -0.2) : 5.0;
+        if (!(factor >= 0.2)) factor = 0.2; /* also catches NaN */
+        if (factor > 5.0) factor = 5.0;
+        if (accept) {
+            memcpy(x, y, sizeof y);
+            t = last ? t_end : t + step;
+            have_f0 = 0;
+            memory->n_steps++;
+            /* A step cut short to land on t_end says nothing about the proposal. */
+            if (!last || step >= h) h = step * factor;
+        } else {
+            memory->n_rejected++;
+            if (factor > 0.5) factor = 0.5;
+            h = step * factor;
+            if (h < smallest) break;
+        }
+    }
+    memory->rkf_proposal = h;
+    return t < t_end ? t : t_end;
+}
+
+#endif /* N_STATES > 0 */

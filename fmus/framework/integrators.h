@@ -1,0 +1,65 @@
+/* Integrators as data: Butcher tableaux and Adams-Bashforth coefficients (thesis chapter 4, with
+ * its printed errors corrected), driven by one explicit Runge-Kutta engine and one Adams-Bashforth
+ * engine. Independent of the FMI layer: the engines see only a right-hand side. */
+#ifndef INTEGRATORS_H
+#define INTEGRATORS_H
+
+#include <stdint.h>
+
+#include "framework.h"
+
+#define RK_MAX_STAGES 6
+#define AB_MAX_COEFFICIENTS 6
+
+typedef struct {
+    const char *name;
+    int stages;
+    int order;
+    double c[RK_MAX_STAGES];
+    double a[RK_MAX_STAGES][RK_MAX_STAGES];
+    double b[RK_MAX_STAGES];
+    /* Embedded error weights (b of the higher-order partner minus b); all zero without a partner. */
+    double e[RK_MAX_STAGES];
+} ButcherTableau;
+
+typedef struct {
+    const char *name;
+    int steps;
+    double beta[AB_MAX_COEFFICIENTS]; /* weights of f(k), f(k-1), ..., f(k-steps+1) */
+    const ButcherTableau *starter;    /* Runge-Kutta method of order >= steps - 1 for the first steps */
+} AdamsBashforth;
+
+extern const ButcherTableau TABLEAU_EULER, TABLEAU_MIDPOINT, TABLEAU_HEUN, TABLEAU_RK3, TABLEAU_RK4,
+    TABLEAU_NYSTROM5, TABLEAU_RKF45;
+extern const AdamsBashforth AB2, AB3, AB4, AB5, AB6;
+
+/* The right-hand side as the engines see it: the model, and inputs that vary linearly over the
+ * communication step, u(t) = u0 + (t - t0) du. Counts its evaluations. */
+typedef struct {
+    const ModelConst *model;
+    double u0[INPUT_SLOTS];
+    double du[INPUT_SLOTS];
+    double t0;
+    int inputs_vary;
+    uint64_t evaluations;
+} RightHandSide;
+
+/* Fixed-step integration with solver (a SOLVER_* value that is not rkf45): n substeps of hs from
+ * t0, substep i starting at t0 + i hs. With check_each, stops before the first substep whose
+ * result fails model_state_ok and leaves x, memory at the last good substep. Returns the number of
+ * substeps completed. */
+int64_t integrate_fixed(RightHandSide *f, int solver, IntegratorMemory *memory, double *x, double t0, double hs,
+                        int64_t n, int check_each);
+
+/* Fehlberg 4(5) with step-size control from t0 to t_end; starts from memory->rkf_proposal (or
+ * h_initial) and leaves its next proposal there. Returns the time reached: t_end on success,
+ * earlier when the step size underflowed (x is then the last accepted state). */
+double integrate_adaptive(RightHandSide *f, IntegratorMemory *memory, double *x, double t0, double t_end,
+                          double h_initial, double tol);
+
+/* The tableau or coefficient set of a solver (NULL where it is the other kind). */
+const ButcherTableau *tableau_of(int solver);
+const AdamsBashforth *adams_bashforth_of(int solver);
+const char *solver_name(int solver);
+
+#endif

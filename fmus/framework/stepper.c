@@ -1,0 +1,134 @@
+/* fmi2DoStep's integration: from the FMU's state at t to t + H, with the solver the user chose.
+ * Finiteness is checked once per communication step; only when that check fails is the step
+ * redone with a check after every substep, to stop at the last good one. */
+#include <math.h>
+#include <string.h>
+
+#include "integrators.h"
+
+/* A master asking for more substeps than this in one call has almost surely mixed up units. */
+#define MAX_SUBSTEPS 1000000000.0
+
+#if N_STATES == 0
+
+fmi2Status step_to(Instance *inst, double t, double H)
+{
+    double before[N_REAL];
+    memcpy(before, inst->s.real, sizeof before);
+    model_advance_inputs(inst->s.real, inst->s.input_derivative, H);
+    /* The outputs belong to the end of the step; a singular end keeps the step from happening. */
+    if (!model_outputs(&inst->constants, NULL, inst->s.real)) {
+        memcpy(inst->s.real, before, sizeof before);
+        inst->outputs_valid = 0;
+        log_discard(inst, "fmi2DoStep: singular configuration at t = %.17g (the outputs are undefined there); "
+                    "last successful time %.17g", t + H, t);
+        inst->s.last_successful_time = t;
+        return fmi2Discard;
+    }
+    memset(inst->s.input_derivative, 0, sizeof inst->s.input_derivative);
+    inst->s.time = t + H;
+    inst->s.last_successful_time = t + H;
+    inst->outputs_valid = 1;
+    return fmi2OK;
+}
+
+#else
+
+static fmi2Status finish(Instance *inst, double t, double H_done, double t_reached)
+{
+    model_advance_inputs(inst->s.real, inst->s.input_derivative, H_done);
+    memset(inst->s.input_derivative, 0, sizeof inst->s.input_derivative); /* slopes hold for one step */
+    inst->s.time = t_reached;
+    inst->s.last_successful_time = t_reached;
+    inst->outputs_valid = 0;
+    (void)t;
+    return fmi2OK;
+}
+
+static fmi2Status fail(Instance *inst, double t, double t_good, const char *method, double h)
+{
+    finish(inst, t, t_good - t, t_good);
+    log_discard(inst, "fmi2DoStep: %s with h = %g: the state became non-finite or singular after t = %.17g; "
+                "stopped at the last successful time %.17g", method, h, t_good, t_good);
+    return fmi2Discard;
+}
+
+fmi2Status step_to(Instance *inst, double t, double H)
+{
+    SimState *s = &inst->s;
+    IntegratorMemory *memory = &s->integrator;
+    const int solver = s->integer[INT_solver];
+    const double h = s->real[VR_h];
+    const char *method = solver_name(solver);
+    double *x = s->real; /* the states lead the Real variables */
+    RightHandSide f;
+    int i;
+
+    f.model = &inst->constants;
+    gather_inputs(inst, f.u0);
+    f.inputs_vary = 0;
+    for (i = 0; i < N_INPUTS; i++) {
+        f.du[i] = s->input_derivative[i];
+        if (f.du[i] != 0.0) f.inputs_vary = 1;
+    }
+    f.t0 = t;
+    f.evaluations = 0;
+
+    {
+        double u_mid[INPUT_SLOTS], closed[STATE_SLOTS];
+        for (i = 0; i < N_INPUTS; i++) u_mid[i] = f.u0[i] + 0.5 * H * f.du[i];
+        memcpy(closed, x, sizeof closed);
+        if (model_closed_form_step(&inst->constants, H, u_mid, closed)) {
+            if (!model_state_ok(&inst->constants, closed)) return fail(inst, t, t, "closed form", H);
+            memcpy(x, closed, sizeof closed);
+            memory->n_steps++;
+            return finish(inst, t, H, t + H);
+        }
+    }
+
+    if (solver == SOLVER_RKF45) {
+        const double t_end = t + H;
+        const double reached = integrate_adaptive(&f, memory, x, t, t_end, h, s->real[VR_tol]);
+        memory->n_rhs += f.evaluations;
+        if (reached < t_end) {
+            finish(inst, t, reached - t, reached);
+            log_discard(inst, "fmi2DoStep: rkf45 with tol = %g: the step size underflowed at t = %.17g (the state "
+                        "is non-finite, singular or too stiff there); stopped at the last successful time %.17g",
+                        s->real[VR_tol], reached, reached);
+            return fmi2Discard;
+        }
+        return finish(inst, t, H, t_end);
+    } else {
+        const double substeps = ceil(H / h - 1e-9);
+        int64_t n, done;
+        double hs;
+        double x_start[STATE_SLOTS];
+        IntegratorMemory memory_start;
+        if (substeps > MAX_SUBSTEPS) {
+            log_error(inst, "fmi2DoStep: communicationStepSize = %g with h = %g needs %.3g substeps (allowed at most "
+                      "%.0f): raise h or shorten the step", H, h, substeps, MAX_SUBSTEPS);
+            return fmi2Error;
+        }
+        n = substeps < 1.0 ? 1 : (int64_t)substeps;
+        hs = H / (double)n;
+        /* Adams-Bashforth history is only valid for the substep it was taken with. */
+        if (memory->ab_count > 0 && fabs(hs - memory->ab_step) > 1e-10 * hs) memory->ab_count = 0;
+        memory->ab_step = hs;
+        memcpy(x_start, x, sizeof x_start);
+        memory_start = *memory;
+        integrate_fixed(&f, solver, memory, x, t, hs, n, 0);
+        if (model_state_ok(&inst->constants, x)) {
+            memory->n_rhs += f.evaluations;
+            return finish(inst, t, H, t + H);
+        }
+        /* Redo with a check after every substep to find the last good one. */
+        memcpy(x, x_start, sizeof x_start);
+        *memory = memory_start;
+        done = integrate_fixed(&f, solver, memory, x, t, hs, n, 1);
+        memory->n_rhs += f.evaluations;
+        memory->ab_count = 0;
+        return fail(inst, t, done == n ? t + H : t + (double)done * hs, method, h);
+    }
+}
+
+#endif

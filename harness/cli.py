@@ -1,0 +1,96 @@
+"""Command line: a thin layer over the library. User errors print one line and exit with 2."""
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+
+from harness.errors import HarnessError
+
+
+def _parse_assignment(text: str) -> tuple[str, object]:
+    name, sep, value = text.partition("=")
+    if not sep or not name:
+        raise HarnessError(f"--set expects NAME=VALUE, got {text!r}")
+    try:
+        return name, float(value)
+    except ValueError:
+        return name, value  # an enumeration item such as solver=ab4
+
+
+def command_simulate(args: argparse.Namespace) -> int:
+    from harness.fmus import locate_fmu
+    from harness.simulation import simulate
+    start_values = dict(_parse_assignment(a) for a in args.set)
+    if args.solver:
+        start_values["solver"] = args.solver
+    if args.h is not None:
+        start_values["h"] = args.h
+    result = simulate(locate_fmu(args.fmu), stop_time=args.stop, step=args.step, start_values=start_values)
+    out = Path(args.out)
+    out.parent.mkdir(parents=True, exist_ok=True)
+    result.write_csv(out)
+    print(f"wrote {out} ({len(result.values)} rows)")
+    if args.plot:
+        from harness.traces import draw_traces
+        pairs = [(x, y) for x, y in (("x", "y"), ("x1", "y1"), ("x2", "y2")) if x in result.columns]
+        if pairs:
+            draw_traces([(result.fmu, result, pairs, (0.0, 0.0))], args.plot)
+            print(f"wrote {args.plot}")
+    if result.discarded_at is not None:
+        print(f"stopped at t = {result.discarded_at}: {result.messages[-1] if result.messages else ''}",
+              file=sys.stderr)
+        return 1
+    return 0
+
+
+def command_demo(args: argparse.Namespace) -> int:
+    from harness.fmus import build_fmus
+    from harness.thesis_scene import THESIS_SCENE, run_thesis_scene
+    build_fmus()
+    out = Path(args.out)
+    results = run_thesis_scene(out, duration=args.duration)
+    print(f"thesis scene, {args.duration} s, rk4 at the thesis's step widths:")
+    for obj in THESIS_SCENE:
+        result = results[obj.name]
+        energy = result["E"]
+        drift = abs(energy[-1] - energy[0]) / max(abs(energy[0]), float(result["E_kin"].max()))
+        status = "ok" if result.discarded_at is None else f"discard at t = {result.discarded_at:.3f}"
+        print(f"  {obj.name:12s} h = {obj.step:<6} rhs evaluations {int(result['n_rhs'][-1]):7d}  "
+              f"energy drift / max E_kin {drift:.2e}  {status}")
+    print(f"wrote CSV files and trace pictures to {out}/ (thesis_scene_traces.png)")
+    return 0
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(prog="harness", description="Pendulum FMUs: simulate, couple, validate, chart.")
+    sub = parser.add_subparsers(dest="command", required=True)
+
+    p = sub.add_parser("simulate", help="simulate one FMU, write CSV (and a trace plot)")
+    p.add_argument("fmu", help="a .fmu file or one of SimplePendulum, DoublePendulum, SpringPendulum, Spring")
+    p.add_argument("--stop", type=float, default=10.0, help="stop time [s] (default 10)")
+    p.add_argument("--step", type=float, default=0.01, help="communication step [s] (default 0.01)")
+    p.add_argument("--solver", help="integration method (euler ... ab6; default rk4)")
+    p.add_argument("--h", type=float, help="internal step [s]")
+    p.add_argument("--set", action="append", default=[], metavar="NAME=VALUE", help="start value or parameter")
+    p.add_argument("--out", default="result.csv", help="CSV file to write")
+    p.add_argument("--plot", help="PNG file for the trace of the moving mass")
+    p.set_defaults(run=command_simulate)
+
+    p = sub.add_parser("demo", help="the main job: build the FMUs, run the thesis scene, write CSV and traces")
+    p.add_argument("--out", default="out", help="output folder (default out/)")
+    p.add_argument("--duration", type=float, default=20.0, help="simulated time [s] (default 20)")
+    p.set_defaults(run=command_demo)
+    return parser
+
+
+def main(argv: list[str] | None = None) -> int:
+    args = build_parser().parse_args(argv)
+    try:
+        return args.run(args)
+    except HarnessError as error:
+        print(f"harness: error: {error}", file=sys.stderr)
+        return 2
+    except KeyboardInterrupt:
+        print("harness: interrupted", file=sys.stderr)
+        return 130

@@ -1,0 +1,196 @@
+"""One FMU instance, addressed by variable names, with its log captured.
+
+A thin layer over fmpy's FMU2Slave / FMU2Model (which load the binary and expose the raw fmi2
+functions): name lookup, enumeration names, status codes instead of exceptions, and the log
+messages kept as a list so that callers can report or assert them.
+"""
+from __future__ import annotations
+
+import ctypes
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+from fmpy import extract, read_model_description
+from fmpy.fmi2 import (FMU2Model, FMU2Slave, fmi2CallbackAllocateMemoryTYPE, fmi2CallbackFreeMemoryTYPE,
+                       fmi2CallbackFunctions, fmi2CallbackLoggerTYPE, fmi2LastSuccessfulTime)
+from fmpy.fmi1 import calloc, free
+
+from harness.errors import HarnessError
+
+STATUS_NAMES = ("OK", "Warning", "Discard", "Error", "Fatal", "Pending")
+OK, WARNING, DISCARD, ERROR, FATAL = 0, 1, 2, 3, 4
+
+
+@dataclass
+class LogMessage:
+    status: int
+    category: str
+    text: str
+
+    def __str__(self) -> str:
+        return f"[{STATUS_NAMES[self.status]}] {self.text}"
+
+
+@dataclass
+class LogCollector:
+    """fmi2 callbacks whose logger appends to messages (fmpy's proxy formats the varargs)."""
+    messages: list[LogMessage] = field(default_factory=list)
+
+    def __post_init__(self) -> None:
+        def log(env, instance_name, status, category, message):
+            self.messages.append(LogMessage(status, (category or b"").decode(), (message or b"").decode()))
+
+        self._logger = fmi2CallbackLoggerTYPE(log)  # keep a reference: ctypes callbacks die with it
+        self.callbacks = fmi2CallbackFunctions()
+        self.callbacks.logger = self._logger
+        self.callbacks.allocateMemory = fmi2CallbackAllocateMemoryTYPE(calloc)
+        self.callbacks.freeMemory = fmi2CallbackFreeMemoryTYPE(free)
+        try:
+            from fmpy.logging import addLoggerProxy
+            addLoggerProxy(ctypes.byref(self.callbacks))
+        except Exception:  # without the proxy, messages arrive unformatted, which ours already are
+            pass
+
+
+class FmuInstance:
+    """An instantiated FMU (Co-Simulation by default, Model Exchange with kind="ME")."""
+
+    def __init__(self, fmu: str | Path, kind: str = "CS", name: str = "instance", logging_on: bool = False,
+                 unzipdir: str | None = None):
+        self.path = Path(fmu)
+        try:
+            self.model_description = read_model_description(str(self.path))
+        except Exception as error:  # fmpy raises plain exceptions for unreadable files
+            raise HarnessError(f"{self.path}: cannot read the FMU ({error})") from None
+        self.unzipdir = unzipdir or extract(str(self.path))
+        self.variables = {v.name: v for v in self.model_description.modelVariables}
+        self.log = LogCollector()
+        interface = self.model_description.coSimulation if kind == "CS" else self.model_description.modelExchange
+        if interface is None:
+            raise HarnessError(f"{self.path}: the FMU does not support {kind}")
+        cls = FMU2Slave if kind == "CS" else FMU2Model
+        self.fmu = cls(guid=self.model_description.guid, unzipDirectory=self.unzipdir,
+                       modelIdentifier=interface.modelIdentifier, instanceName=name)
+        self.fmu.instantiate(callbacks=self.log.callbacks, loggingOn=logging_on)
+        self.kind = kind
+
+    # ---- variables by name
+    def reference(self, name: str) -> int:
+        try:
+            return self.variables[name].valueReference
+        except KeyError:
+            raise HarnessError(f"{self.path.name} has no variable {name!r}") from None
+
+    def _encode(self, name: str, value) -> tuple[str, int | float]:
+        variable = self.variables.get(name)
+        if variable is None:
+            raise HarnessError(f"{self.path.name} has no variable {name!r}")
+        if variable.type == "Enumeration":
+            if isinstance(value, str):
+                items = {item.name: item.value for item in variable.declaredType.items}
+                if value not in items:
+                    raise HarnessError(f"{name} = {value!r} is not one of {', '.join(items)}")
+                value = items[value]
+            return "Integer", int(value)
+        if variable.type in ("Integer", "Boolean"):
+            return variable.type, int(value)
+        return "Real", float(value)
+
+    def set(self, **values) -> int:
+        """Sets variables by name; returns the worst fmi2Status."""
+        worst = OK
+        for name, value in values.items():
+            kind, encoded = self._encode(name, value)
+            vr = (ctypes.c_uint * 1)(self.reference(name))
+            if kind == "Real":
+                status = self.fmu.fmi2SetReal(self.fmu.component, vr, 1, (ctypes.c_double * 1)(encoded))
+            else:
+                status = self.fmu.fmi2SetInteger(self.fmu.component, vr, 1, (ctypes.c_int * 1)(encoded))
+            worst = max(worst, status)
+        return worst
+
+    def get(self, *names: str) -> list[float]:
+        values = []
+        for name in names:
+            variable = self.variables.get(name)
+            if variable is None:
+                raise HarnessError(f"{self.path.name} has no variable {name!r}")
+            vr = (ctypes.c_uint * 1)(variable.valueReference)
+            if variable.type == "Real":
+                out = (ctypes.c_double * 1)()
+                status = self.fmu.fmi2GetReal(self.fmu.component, vr, 1, out)
+            else:
+                out = (ctypes.c_int * 1)()
+                status = self.fmu.fmi2GetInteger(self.fmu.component, vr, 1, out)
+            if status > DISCARD:
+                raise HarnessError(f"fmi2Get of {name} returned {STATUS_NAMES[status]}: {self.last_message()}")
+            values.append(out[0])
+        return values
+
+    def call(self, function: str, *args) -> int:
+        """A raw fmi2 call by name, returning its status (no exception)."""
+        return getattr(self.fmu, function)(self.fmu.component, *args)
+
+    # ---- life cycle
+    def initialize(self, start_time: float = 0.0, **start_values) -> None:
+        self.fmu.setupExperiment(startTime=start_time)
+        self._require(self.set(**start_values), "setting start values")
+        self._require(self.call("fmi2EnterInitializationMode"), "fmi2EnterInitializationMode")
+        self._require(self.call("fmi2ExitInitializationMode"), "fmi2ExitInitializationMode")
+
+    def do_step(self, t: float, H: float) -> int:
+        return self.fmu.fmi2DoStep(self.fmu.component, t, H, 1)
+
+    def last_successful_time(self) -> float:
+        value = ctypes.c_double()
+        self.fmu.fmi2GetRealStatus(self.fmu.component, fmi2LastSuccessfulTime, ctypes.byref(value))
+        return value.value
+
+    def output_derivatives(self, *names: str) -> np.ndarray:
+        n = len(names)
+        vrs = (ctypes.c_uint * n)(*[self.reference(name) for name in names])
+        orders = (ctypes.c_int * n)(*([1] * n))
+        out = (ctypes.c_double * n)()
+        self._require(self.fmu.fmi2GetRealOutputDerivatives(self.fmu.component, vrs, n, orders, out),
+                      "fmi2GetRealOutputDerivatives")
+        return np.array(out[:])
+
+    def set_input_derivatives(self, **slopes: float) -> int:
+        n = len(slopes)
+        vrs = (ctypes.c_uint * n)(*[self.reference(name) for name in slopes])
+        orders = (ctypes.c_int * n)(*([1] * n))
+        values = (ctypes.c_double * n)(*slopes.values())
+        return self.fmu.fmi2SetRealInputDerivatives(self.fmu.component, vrs, n, orders, values)
+
+    # ---- FMU state
+    def get_state(self):
+        return self.fmu.getFMUstate()
+
+    def set_state(self, state) -> None:
+        self.fmu.setFMUstate(state)
+
+    def serialize(self, state) -> bytes:
+        return bytes(self.fmu.serializeFMUstate(state))
+
+    def deserialize(self, data: bytes):
+        return self.fmu.deserializeFMUstate(bytearray(data))
+
+    # ---- log
+    def last_message(self) -> str:
+        return self.log.messages[-1].text if self.log.messages else "(no log message)"
+
+    def _require(self, status: int, what: str) -> None:
+        if status > WARNING:
+            raise HarnessError(f"{self.path.name}: {what} returned {STATUS_NAMES[status]}: {self.last_message()}")
+
+    def free(self) -> None:
+        if self.fmu is not None:
+            self.fmu.freeInstance()
+            self.fmu = None
+
+    def __enter__(self) -> "FmuInstance":
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.free()

@@ -1,0 +1,46 @@
+"""Where the built FMUs are, and building them with CMake when they are missing."""
+from __future__ import annotations
+
+import os
+import shutil
+import subprocess
+from pathlib import Path
+
+from harness.errors import HarnessError
+
+FMU_NAMES = ("SimplePendulum", "DoublePendulum", "SpringPendulum", "Spring")
+PROJECT_ROOT = Path(__file__).resolve().parent.parent
+
+
+def build_dir() -> Path:
+    return Path(os.environ.get("PENDULUM_BUILD_DIR", PROJECT_ROOT / "build"))
+
+
+def build_fmus(quiet: bool = True) -> None:
+    """Configure and build with CMake (incremental: cheap when nothing changed)."""
+    if shutil.which("cmake") is None:
+        raise HarnessError("cmake is not on PATH: it is needed to build the FMUs")
+    output = subprocess.DEVNULL if quiet else None
+    try:
+        subprocess.run(["cmake", "-S", str(PROJECT_ROOT), "-B", str(build_dir()), "-DCMAKE_BUILD_TYPE=Release"],
+                       check=True, stdout=output)
+        subprocess.run(["cmake", "--build", str(build_dir()), "-j2"], check=True, stdout=output)
+    except subprocess.CalledProcessError as error:
+        raise HarnessError(f"building the FMUs failed: {' '.join(error.cmd)} exited with {error.returncode}") from None
+
+
+def locate_fmu(name: str, build_if_missing: bool = True) -> Path:
+    """Path of build/fmus/<name>.fmu; a path to an existing .fmu is returned as it is."""
+    candidate = Path(name)
+    if candidate.suffix == ".fmu":
+        if not candidate.is_file():
+            raise HarnessError(f"{candidate}: no such FMU file")
+        return candidate
+    if name not in FMU_NAMES:
+        raise HarnessError(f"unknown FMU {name!r}: expected a .fmu path or one of {', '.join(FMU_NAMES)}")
+    path = build_dir() / "fmus" / f"{name}.fmu"
+    if not path.is_file() and build_if_missing:
+        build_fmus()
+    if not path.is_file():
+        raise HarnessError(f"{path} does not exist: build the FMUs with cmake -S . -B build && cmake --build build")
+    return path

@@ -1,0 +1,126 @@
+"""Every tableau the FMUs are built with satisfies the Runge-Kutta order conditions of its order
+(and fails one of the next order); every Adams-Bashforth set is exact on polynomials of its degree."""
+from __future__ import annotations
+
+import functools
+import json
+import subprocess
+import xml.etree.ElementTree as ET
+from fractions import Fraction
+
+import numpy as np
+import pytest
+
+from harness.fmus import PROJECT_ROOT, build_dir, build_fmus
+
+EXPECTED_ORDER = {"euler": 1, "midpoint": 2, "heun": 2, "rk3": 3, "rk4": 4, "nystrom5": 5, "rkf45": 4}
+
+
+@pytest.fixture(scope="module")
+def tables() -> dict:
+    build_fmus()
+    output = subprocess.run([str(build_dir() / "bin" / "integrator_tables")], check=True, capture_output=True,
+                            text=True).stdout
+    return json.loads(output)
+
+
+@functools.lru_cache(maxsize=None)
+def rooted_trees(order: int) -> tuple:
+    """All rooted trees with `order` nodes; a tree is the sorted tuple of its subtrees."""
+    if order == 1:
+        return ((),)
+    result = set()
+
+    def forests(remaining: int, smallest: tuple) -> list:
+        if remaining == 0:
+            return [()]
+        found = []
+        for first_order in range(1, remaining + 1):
+            for subtree in rooted_trees(first_order):
+                if (first_order, subtree) < smallest:
+                    continue
+                for rest in forests(remaining - first_order, (first_order, subtree)):
+                    found.append((subtree,) + rest)
+        return found
+
+    for forest in forests(order - 1, (0, ())):
+        result.add(tuple(sorted(forest, key=repr)))
+    return tuple(sorted(result, key=repr))
+
+
+def tree_order(tree: tuple) -> int:
+    return 1 + sum(tree_order(child) for child in tree)
+
+
+def density(tree: tuple) -> int:
+    value = tree_order(tree)
+    for child in tree:
+        value *= density(child)
+    return value
+
+
+def stage_weights(tree: tuple, a: np.ndarray) -> np.ndarray:
+    weights = np.ones(a.shape[0])
+    for child in tree:
+        weights = weights * (a @ stage_weights(child, a))
+    return weights
+
+
+def satisfied_order(a: np.ndarray, b: np.ndarray, limit: int = 7) -> int:
+    """Largest p such that b . Phi(t) = 1/gamma(t) for every tree t with at most p nodes."""
+    for order in range(1, limit + 1):
+        for tree in rooted_trees(order):
+            if abs(b @ stage_weights(tree, a) - 1.0 / density(tree)) > 1e-12:
+                return order - 1
+    return limit
+
+
+def test_tree_counts():
+    # 1, 1, 2, 4, 9, 20 rooted trees of orders 1..6 (OEIS A000081): the generator is complete.
+    assert [len(rooted_trees(n)) for n in range(1, 7)] == [1, 1, 2, 4, 9, 20]
+
+
+def test_solver_order_matches_the_xml_enumeration(tables):
+    root = ET.parse(PROJECT_ROOT / "modelDescription" / "SimplePendulum.xml").getroot()
+    items = [item.get("name") for item in root.iter("Item") if item.get("name") in tables]
+    assert items == list(tables) == ["euler", "midpoint", "heun", "rk3", "rk4", "rkf45", "nystrom5",
+                                     "ab2", "ab3", "ab4", "ab5", "ab6"]
+
+
+@pytest.mark.parametrize("name", list(EXPECTED_ORDER))
+def test_runge_kutta_order_conditions(tables, name):
+    t = tables[name]
+    a, b, c = np.array(t["a"]), np.array(t["b"]), np.array(t["c"])
+    assert np.allclose(a.sum(axis=1), c, atol=1e-15), "c_i must be the row sums of A"
+    assert np.allclose(np.triu(a), 0.0), "explicit methods have a strictly lower-triangular A"
+    assert t["order"] == EXPECTED_ORDER[name]
+    assert satisfied_order(a, b) == EXPECTED_ORDER[name]
+
+
+def test_fehlberg_partner_is_fifth_order(tables):
+    t = tables["rkf45"]
+    a, b, e = np.array(t["a"]), np.array(t["b"]), np.array(t["e"])
+    assert satisfied_order(a, b + e) == 5
+
+
+def test_thesis_misprints_would_fail():
+    """The printed Kutta-Nystrom coefficients (a21 = 1/4, a52 = -90/81, a62 = -36/75) are not order 5."""
+    a = np.array([[0, 0, 0, 0, 0, 0], [1 / 4, 0, 0, 0, 0, 0], [4 / 25, 6 / 25, 0, 0, 0, 0],
+                  [1 / 4, -3, 15 / 4, 0, 0, 0], [2 / 27, -90 / 81, -50 / 81, 8 / 81, 0, 0],
+                  [2 / 25, -36 / 75, 2 / 15, 8 / 75, 0, 0]])
+    b = np.array([23, 0, 125, 0, -81, 125]) / 192
+    assert satisfied_order(a, b) < 5
+
+
+@pytest.mark.parametrize("name,steps", [("ab2", 2), ("ab3", 3), ("ab4", 4), ("ab5", 5), ("ab6", 6)])
+def test_adams_bashforth_exact_on_polynomials(tables, name, steps):
+    ab = tables[name]
+    beta = [Fraction(x).limit_denominator(2000) for x in ab["beta"]]
+    assert all(abs(float(f) - x) < 1e-15 for f, x in zip(beta, ab["beta"]))
+    # int_0^1 s^(q-1) ds = 1/q = sum_j beta_j (-j)^(q-1): exact for degree < steps, not for degree = steps.
+    moments = [sum(bj * Fraction(-j) ** (q - 1) for j, bj in enumerate(beta)) for q in range(1, steps + 2)]
+    assert moments[:steps] == [Fraction(1, q) for q in range(1, steps + 1)]
+    assert moments[steps] != Fraction(1, steps + 1)
+    assert ab["steps"] == steps
+    # The start must match the order: a Runge-Kutta method of order >= steps - 1.
+    assert EXPECTED_ORDER[ab["starter"]] >= steps - 1
