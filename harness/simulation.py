@@ -51,10 +51,12 @@ def communication_grid(start_time: float, stop_time: float, step: float) -> np.n
 
 
 def simulate(fmu: str | Path, stop_time: float, step: float = 0.01, start_time: float = 0.0,
-             start_values: dict | None = None, outputs: list[str] | None = None) -> SimulationResult:
-    """Runs the FMU from start_time to stop_time; start_values by name (solver="rk4", h=0.008, ...)."""
+             start_values: dict | None = None, outputs: list[str] | None = None,
+             unzipdir: str | None = None) -> SimulationResult:
+    """Runs the FMU from start_time to stop_time; start_values by name (solver="rk4", h=0.008, ...).
+    unzipdir: an already extracted copy of the FMU, to save extracting it again."""
     grid = communication_grid(start_time, stop_time, step)
-    with FmuInstance(fmu, name=Path(fmu).stem) as instance:
+    with FmuInstance(fmu, name=Path(fmu).stem, unzipdir=unzipdir) as instance:
         instance.initialize(start_time, **(start_values or {}))
         if outputs is None:
             outputs = [v.name for v in instance.model_description.modelVariables if v.causality == "output"]
