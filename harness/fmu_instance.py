@@ -34,7 +34,11 @@ class LogMessage:
 
 @dataclass
 class LogCollector:
-    """fmi2 callbacks whose logger appends to messages (fmpy's proxy formats the varargs)."""
+    """fmi2 callbacks whose logger appends to this instance's messages.
+
+    fmpy's native logger proxy (which formats printf arguments) keeps one logger for the whole
+    process, so it is not used here: each instance keeps its own log. Messages arrive as the FMU
+    formatted them; any printf arguments an FMU passes separately are not expanded."""
     messages: list[LogMessage] = field(default_factory=list)
 
     def __post_init__(self) -> None:
@@ -46,11 +50,6 @@ class LogCollector:
         self.callbacks.logger = self._logger
         self.callbacks.allocateMemory = fmi2CallbackAllocateMemoryTYPE(calloc)
         self.callbacks.freeMemory = fmi2CallbackFreeMemoryTYPE(free)
-        try:
-            from fmpy.logging import addLoggerProxy
-            addLoggerProxy(ctypes.byref(self.callbacks))
-        except Exception:  # without the proxy, messages arrive unformatted, which ours already are
-            pass
 
 
 class FmuInstance:
@@ -104,9 +103,9 @@ class FmuInstance:
             kind, encoded = self._encode(name, value)
             vr = (ctypes.c_uint * 1)(self.reference(name))
             if kind == "Real":
-                status = self.fmu.fmi2SetReal(self.fmu.component, vr, 1, (ctypes.c_double * 1)(encoded))
+                status = self.call("fmi2SetReal", vr, 1, (ctypes.c_double * 1)(encoded))
             else:
-                status = self.fmu.fmi2SetInteger(self.fmu.component, vr, 1, (ctypes.c_int * 1)(encoded))
+                status = self.call("fmi2SetInteger", vr, 1, (ctypes.c_int * 1)(encoded))
             worst = max(worst, status)
         return worst
 
@@ -119,32 +118,32 @@ class FmuInstance:
             vr = (ctypes.c_uint * 1)(variable.valueReference)
             if variable.type == "Real":
                 out = (ctypes.c_double * 1)()
-                status = self.fmu.fmi2GetReal(self.fmu.component, vr, 1, out)
+                status = self.call("fmi2GetReal", vr, 1, out)
             else:
                 out = (ctypes.c_int * 1)()
-                status = self.fmu.fmi2GetInteger(self.fmu.component, vr, 1, out)
+                status = self.call("fmi2GetInteger", vr, 1, out)
             if status > DISCARD:
                 raise HarnessError(f"fmi2Get of {name} returned {STATUS_NAMES[status]}: {self.last_message()}")
             values.append(out[0])
         return values
 
     def call(self, function: str, *args) -> int:
-        """A raw fmi2 call by name, returning its status (no exception)."""
-        return getattr(self.fmu, function)(self.fmu.component, *args)
+        """A raw fmi2 call by name, returning its status (fmpy's wrappers raise instead)."""
+        return getattr(self.fmu.dll, function)(self.fmu.component, *args)
 
     # ---- life cycle
     def initialize(self, start_time: float = 0.0, **start_values) -> None:
-        self.fmu.setupExperiment(startTime=start_time)
+        self._require(self.call("fmi2SetupExperiment", 0, 0.0, start_time, 0, 0.0), "fmi2SetupExperiment")
         self._require(self.set(**start_values), "setting start values")
         self._require(self.call("fmi2EnterInitializationMode"), "fmi2EnterInitializationMode")
         self._require(self.call("fmi2ExitInitializationMode"), "fmi2ExitInitializationMode")
 
     def do_step(self, t: float, H: float) -> int:
-        return self.fmu.fmi2DoStep(self.fmu.component, t, H, 1)
+        return self.call("fmi2DoStep", t, H, 1)
 
     def last_successful_time(self) -> float:
         value = ctypes.c_double()
-        self.fmu.fmi2GetRealStatus(self.fmu.component, fmi2LastSuccessfulTime, ctypes.byref(value))
+        self.call("fmi2GetRealStatus", fmi2LastSuccessfulTime, ctypes.byref(value))
         return value.value
 
     def output_derivatives(self, *names: str) -> np.ndarray:
@@ -152,8 +151,7 @@ class FmuInstance:
         vrs = (ctypes.c_uint * n)(*[self.reference(name) for name in names])
         orders = (ctypes.c_int * n)(*([1] * n))
         out = (ctypes.c_double * n)()
-        self._require(self.fmu.fmi2GetRealOutputDerivatives(self.fmu.component, vrs, n, orders, out),
-                      "fmi2GetRealOutputDerivatives")
+        self._require(self.call("fmi2GetRealOutputDerivatives", vrs, n, orders, out), "fmi2GetRealOutputDerivatives")
         return np.array(out[:])
 
     def set_input_derivatives(self, **slopes: float) -> int:
@@ -161,20 +159,33 @@ class FmuInstance:
         vrs = (ctypes.c_uint * n)(*[self.reference(name) for name in slopes])
         orders = (ctypes.c_int * n)(*([1] * n))
         values = (ctypes.c_double * n)(*slopes.values())
-        return self.fmu.fmi2SetRealInputDerivatives(self.fmu.component, vrs, n, orders, values)
+        return self.call("fmi2SetRealInputDerivatives", vrs, n, orders, values)
 
     # ---- FMU state
-    def get_state(self):
-        return self.fmu.getFMUstate()
+    def get_state(self) -> ctypes.c_void_p:
+        state = ctypes.c_void_p()
+        self._require(self.call("fmi2GetFMUstate", ctypes.byref(state)), "fmi2GetFMUstate")
+        return state
 
-    def set_state(self, state) -> None:
-        self.fmu.setFMUstate(state)
+    def set_state(self, state: ctypes.c_void_p) -> None:
+        self._require(self.call("fmi2SetFMUstate", state), "fmi2SetFMUstate")
 
-    def serialize(self, state) -> bytes:
-        return bytes(self.fmu.serializeFMUstate(state))
+    def free_state(self, state: ctypes.c_void_p) -> None:
+        self._require(self.call("fmi2FreeFMUstate", ctypes.byref(state)), "fmi2FreeFMUstate")
 
-    def deserialize(self, data: bytes):
-        return self.fmu.deserializeFMUstate(bytearray(data))
+    def serialize(self, state: ctypes.c_void_p) -> bytes:
+        size = ctypes.c_size_t()
+        self._require(self.call("fmi2SerializedFMUstateSize", state, ctypes.byref(size)), "fmi2SerializedFMUstateSize")
+        buffer = ctypes.create_string_buffer(size.value)
+        self._require(self.call("fmi2SerializeFMUstate", state, buffer, size), "fmi2SerializeFMUstate")
+        return buffer.raw
+
+    def deserialize(self, data: bytes) -> ctypes.c_void_p:
+        state = ctypes.c_void_p()
+        buffer = ctypes.create_string_buffer(bytes(data), len(data))
+        self._require(self.call("fmi2DeSerializeFMUstate", buffer, len(data), ctypes.byref(state)),
+                      "fmi2DeSerializeFMUstate")
+        return state
 
     # ---- log
     def last_message(self) -> str:

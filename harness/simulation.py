@@ -68,13 +68,12 @@ def simulate(fmu: str | Path, stop_time: float, step: float = 0.01, start_time: 
         real_out = (ctypes.c_double * len(real_names))()
         integer_out = (ctypes.c_int * len(integer_names))()
         table = np.empty((len(grid), len(columns)))
-        raw = instance.fmu
         discarded_at = None
         rows = 0
 
         def record(t: float) -> None:
-            status = max(raw.fmi2GetReal(raw.component, real_vrs, len(real_names), real_out),
-                         raw.fmi2GetInteger(raw.component, integer_vrs, len(integer_names), integer_out))
+            status = max(instance.call("fmi2GetReal", real_vrs, len(real_names), real_out),
+                         instance.call("fmi2GetInteger", integer_vrs, len(integer_names), integer_out))
             if status >= ERROR:
                 raise HarnessError(f"{Path(fmu).name}: reading outputs returned {STATUS_NAMES[status]}: "
                                    f"{instance.last_message()}")

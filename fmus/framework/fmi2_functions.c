@@ -401,9 +401,9 @@ fmi2Status fmi2ExitInitializationMode(fmi2Component c)
     inst->constants_valid = 0;
     if (!ensure_constants(inst, "fmi2ExitInitializationMode")) return fmi2Error;
 #if N_STATES > 0
-    if (!model_state_ok(&inst->constants, inst->s.real)) {
-        log_error(inst, "fmi2ExitInitializationMode: the start values of the states give a non-finite or singular "
-                  "configuration");
+    if (!state_acceptable(inst, inst->s.real)) {
+        log_error(inst, "fmi2ExitInitializationMode: the start values of the states give a singular configuration "
+                  "or non-finite derivatives or outputs");
         return fmi2Error;
     }
 #endif

@@ -95,6 +95,10 @@ void gather_inputs(const Instance *inst, double *u);
 /* stepper.c: fmi2DoStep's integration from s.time to t + H. */
 fmi2Status step_to(Instance *inst, double t, double H);
 void restart_integrator(Instance *inst);
+#if N_STATES > 0
+/* States x (of the Instance context) are finite and regular, with finite derivatives and outputs. */
+int state_acceptable(const void *context, const double *x);
+#endif
 
 /* ---- implemented by each model in its physics.c ---- */
 

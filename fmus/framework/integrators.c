@@ -119,7 +119,7 @@ ENGINE_INLINE int64_t runge_kutta_loop(RightHandSide *f, const ButcherTableau *t
         if (check_each) memcpy(saved, x, sizeof saved);
         evaluate(f, t, x, f0);
         runge_kutta_step(f, tab, t, hs, x, f0, NULL);
-        if (check_each && !model_state_ok(f->model, x)) {
+        if (check_each && !f->acceptable(f->context, x)) {
             memcpy(x, saved, sizeof saved);
             return i;
         }
@@ -157,7 +157,7 @@ ENGINE_INLINE int64_t adams_bashforth_loop(RightHandSide *f, const AdamsBashfort
                 x[q] += hs * sum;
             }
         }
-        if (check_each && !model_state_ok(f->model, x)) {
+        if (check_each && !f->acceptable(f->context, x)) {
             memcpy(x, saved, sizeof saved);
             *m = saved_memory;
             return i;
@@ -224,7 +224,7 @@ int64_t integrate_fixed(RightHandSide *f, int solver, IntegratorMemory *memory, 
 }
 
 double integrate_adaptive(RightHandSide *f, IntegratorMemory *memory, double *x, double t0, double t_end,
-                          double h_initial, double tol)
+                          double h_initial, double tol, int check_each)
 {
     const double smallest = 1e-14 * (fabs(t_end) > 1.0 ? fabs(t_end) : 1.0);
     double h = memory->rkf_proposal > 0.0 ? memory->rkf_proposal : h_initial;
@@ -248,7 +248,7 @@ double integrate_adaptive(RightHandSide *f, IntegratorMemory *memory, double *x,
             norm += scaled * scaled;
         }
         norm = sqrt(norm / N_STATES);
-        accept = norm <= 1.0 && model_state_ok(f->model, y);
+        accept = norm <= 1.0 && model_state_ok(f->model, y) && (!check_each || f->acceptable(f->context, y));
         /* Order-4 error estimate: the step scales with norm^(-1/5), kept within [0.2, 5]. */
         factor = norm > 0.0 ? 0.9 * pow(norm, -0.2) : 5.0;
         if (!(factor >= 0.2)) factor = 0.2; /* also catches NaN */

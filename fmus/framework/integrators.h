@@ -42,20 +42,26 @@ typedef struct {
     double t0;
     int inputs_vary;
     uint64_t evaluations;
+    /* Whether a state is good enough to continue from (finite, not singular, finite outputs);
+     * called only in checking passes, never in the hot loop. */
+    int (*acceptable)(const void *context, const double *x);
+    const void *context;
 } RightHandSide;
 
 /* Fixed-step integration with solver (a SOLVER_* value that is not rkf45): n substeps of hs from
  * t0, substep i starting at t0 + i hs. With check_each, stops before the first substep whose
- * result fails model_state_ok and leaves x, memory at the last good substep. Returns the number of
+ * result is not acceptable and leaves x, memory at the last good substep. Returns the number of
  * substeps completed. */
 int64_t integrate_fixed(RightHandSide *f, int solver, IntegratorMemory *memory, double *x, double t0, double hs,
                         int64_t n, int check_each);
 
 /* Fehlberg 4(5) with step-size control from t0 to t_end; starts from memory->rkf_proposal (or
- * h_initial) and leaves its next proposal there. Returns the time reached: t_end on success,
- * earlier when the step size underflowed (x is then the last accepted state). */
+ * h_initial) and leaves its next proposal there. A step whose result fails model_state_ok (or, with
+ * check_each, is not acceptable) is rejected like one with too large an error. Returns the time
+ * reached: t_end on success, earlier when the step size underflowed (x is then the last accepted
+ * state). */
 double integrate_adaptive(RightHandSide *f, IntegratorMemory *memory, double *x, double t0, double t_end,
-                          double h_initial, double tol);
+                          double h_initial, double tol, int check_each);
 
 /* The tableau or coefficient set of a solver (NULL where it is the other kind). */
 const ButcherTableau *tableau_of(int solver);

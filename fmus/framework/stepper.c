@@ -45,6 +45,25 @@ static fmi2Status finish(Instance *inst, double t, double H_done, double t_reach
     return fmi2OK;
 }
 
+/* A state to continue from: finite and regular, with finite derivatives and outputs. Costs a
+ * right-hand side and the outputs, so it runs once per communication step, or per substep only
+ * when redoing a failed step. */
+int state_acceptable(const void *context, const double *x)
+{
+    const Instance *inst = (const Instance *)context;
+    double real[N_REAL], u[INPUT_SLOTS];
+    int i;
+    if (!model_state_ok(&inst->constants, x)) return 0;
+    memcpy(real, inst->s.real, sizeof real);
+    memcpy(real, x, N_STATES * sizeof(double));
+    gather_inputs(inst, u);
+    model_derivatives(&inst->constants, x, u, real + N_STATES);
+    if (!model_outputs(&inst->constants, real + N_STATES, real)) return 0;
+    for (i = 0; i < N_REAL; i++)
+        if (!isfinite(real[i])) return 0;
+    return 1;
+}
+
 static fmi2Status fail(Instance *inst, double t, double t_good, const char *method, double h)
 {
     finish(inst, t, t_good - t, t_good);
@@ -73,13 +92,15 @@ fmi2Status step_to(Instance *inst, double t, double H)
     }
     f.t0 = t;
     f.evaluations = 0;
+    f.acceptable = state_acceptable;
+    f.context = inst;
 
     {
         double u_mid[INPUT_SLOTS], closed[STATE_SLOTS];
         for (i = 0; i < N_INPUTS; i++) u_mid[i] = f.u0[i] + 0.5 * H * f.du[i];
         memcpy(closed, x, sizeof closed);
         if (model_closed_form_step(&inst->constants, H, u_mid, closed)) {
-            if (!model_state_ok(&inst->constants, closed)) return fail(inst, t, t, "closed form", H);
+            if (!state_acceptable(inst, closed)) return fail(inst, t, t, "closed form", H);
             memcpy(x, closed, sizeof closed);
             memory->n_steps++;
             return finish(inst, t, H, t + H);
@@ -88,7 +109,16 @@ fmi2Status step_to(Instance *inst, double t, double H)
 
     if (solver == SOLVER_RKF45) {
         const double t_end = t + H;
-        const double reached = integrate_adaptive(&f, memory, x, t, t_end, h, s->real[VR_tol]);
+        double x_start[STATE_SLOTS];
+        IntegratorMemory memory_start = *memory;
+        double reached;
+        memcpy(x_start, x, sizeof x_start);
+        reached = integrate_adaptive(&f, memory, x, t, t_end, h, s->real[VR_tol], 0);
+        if (!state_acceptable(inst, x)) { /* outputs overflowed although the state stayed finite: redo, checking */
+            memcpy(x, x_start, sizeof x_start);
+            *memory = memory_start;
+            reached = integrate_adaptive(&f, memory, x, t, t_end, h, s->real[VR_tol], 1);
+        }
         memory->n_rhs += f.evaluations;
         if (reached < t_end) {
             finish(inst, t, reached - t, reached);
@@ -117,7 +147,7 @@ fmi2Status step_to(Instance *inst, double t, double H)
         memcpy(x_start, x, sizeof x_start);
         memory_start = *memory;
         integrate_fixed(&f, solver, memory, x, t, hs, n, 0);
-        if (model_state_ok(&inst->constants, x)) {
+        if (state_acceptable(inst, x)) {
             memory->n_rhs += f.evaluations;
             return finish(inst, t, H, t + H);
         }

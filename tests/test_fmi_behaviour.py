@@ -1,0 +1,388 @@
+"""FMI behaviour of the FMUs: Co-Simulation and Model Exchange, time keeping, FMU state, failure,
+bad input, input and output derivatives."""
+from __future__ import annotations
+
+import ctypes
+import math
+import subprocess
+import sys
+import textwrap
+
+import numpy as np
+import pytest
+from fmpy import simulate_fmu
+from scipy.integrate import solve_ivp
+
+from harness.fmu_instance import DISCARD, ERROR, OK
+from harness.simulation import simulate
+
+PENDULUMS = ("SimplePendulum", "DoublePendulum", "SpringPendulum")
+STATES = {"SimplePendulum": ("phi", "omega"), "DoublePendulum": ("phi1", "phi2", "omega1", "omega2"),
+          "SpringPendulum": ("phi", "eps", "omega", "v_eps")}
+POSITION = {"SimplePendulum": ("x", "y"), "DoublePendulum": ("x2", "y2"), "SpringPendulum": ("x", "y")}
+
+
+# ---------------------------------------------------------------- CS and ME
+
+@pytest.mark.parametrize("name", PENDULUMS)
+def test_co_simulation_agrees_with_model_exchange_under_cvode(fmu_paths, name):
+    stop = 1.5  # the double pendulum is chaotic: compare over a short time only
+    cs = simulate_fmu(str(fmu_paths[name]), stop_time=stop, output_interval=0.01,
+                      start_values={"solver": 7, "h": 0.002})
+    me = simulate_fmu(str(fmu_paths[name]), fmi_type="ModelExchange", stop_time=stop, output_interval=0.01,
+                      relative_tolerance=1e-10)
+    x, y = POSITION[name]
+    assert np.max(np.hypot(cs[x] - np.interp(cs["time"], me["time"], me[x]),
+                           cs[y] - np.interp(cs["time"], me["time"], me[y]))) < 1e-6
+    assert me["n_rhs"][-1] == 0  # the counters count fmi2DoStep's own work only
+
+
+def test_spring_simulates_in_both_interfaces(fmu_paths):
+    start = {"a_vx": -0.25, "b_vy": 0.5, "c": 1.0}
+    cs = simulate_fmu(str(fmu_paths["Spring"]), stop_time=1.0, output_interval=0.1, start_values=start)
+    me = simulate_fmu(str(fmu_paths["Spring"]), fmi_type="ModelExchange", stop_time=1.0, output_interval=0.1,
+                      start_values=start)
+    # The inputs are held in both; in CS the positions move with the velocity inputs over each step.
+    assert me["Fa_x"][-1] == pytest.approx(me["Fa_x"][0])
+    r = np.hypot(1.0 + 0.25 * 1.0, 0.5 * 1.0)
+    assert cs["E_pot"][-1] == pytest.approx(0.5 * 10 * (r - 1.0) ** 2, rel=1e-12)
+
+
+# ---------------------------------------------------------------- time
+
+def test_time_lands_exactly_on_the_masters_grid(open_fmu):
+    fmu = open_fmu("SimplePendulum")
+    fmu.initialize(solver="rk4", h=0.003)
+    t = 0.0
+    for i in range(100):
+        H = 0.1 / 3 if i % 2 else 0.07
+        assert fmu.do_step(t, H) == OK
+        t = t + H
+        assert fmu.last_successful_time() == t  # bit for bit the master's t + H
+    # The communication point may deviate from the FMU's time by 1e-9 max(1, |t|), no more.
+    assert fmu.do_step(t + 0.5e-9 * max(1.0, t), 0.01) == OK
+    assert fmu.do_step(t + 0.01 + 1e-8, 0.01) == ERROR
+    assert "currentCommunicationPoint" in fmu.last_message()
+
+
+def test_substeps_are_equal_and_counted(open_fmu):
+    fmu = open_fmu("SimplePendulum")
+    fmu.initialize(solver="rk4", h=0.008)
+    assert fmu.do_step(0.0, 0.1) == OK  # ceil(0.1 / 0.008) = 13 substeps of 0.1/13
+    assert fmu.get("n_steps", "n_rhs") == [13, 52]
+    assert fmu.do_step(0.1, 0.008 * 3) == OK  # exactly 3 substeps, not 4
+    assert fmu.get("n_steps")[0] == 16
+
+
+@pytest.mark.parametrize("solver,per_step", [("euler", 1), ("midpoint", 2), ("heun", 2), ("rk3", 3), ("rk4", 4),
+                                             ("nystrom5", 6), ("ab3", 1), ("ab6", 1)])
+def test_right_hand_side_evaluations_per_step(open_fmu, solver, per_step):
+    fmu = open_fmu("DoublePendulum")
+    fmu.initialize(solver=solver, h=0.01)
+    assert fmu.do_step(0.0, 1.0) == OK
+    n_rhs, n_steps = fmu.get("n_rhs", "n_steps")
+    start_extra = {"ab3": 2 * 3, "ab6": 5 * 5}.get(solver, 0)  # Runge-Kutta start steps cost their extra stages
+    assert n_steps == 100 and n_rhs == per_step * 100 + start_extra
+
+
+# ---------------------------------------------------------------- FMU state
+
+def run_steps(fmu, t0: float, count: int, H: float = 0.05) -> list[float]:
+    for i in range(count):
+        assert fmu.do_step(t0 + i * H, H) == OK
+    return fmu.get(*STATES[fmu.path.stem], "n_rhs", "n_steps")
+
+
+@pytest.mark.parametrize("name", PENDULUMS)
+@pytest.mark.parametrize("solver", ["rk4", "ab4", "rkf45"])
+def test_fmu_state_round_trip_continues_bit_identically(open_fmu, name, solver):
+    reference = open_fmu(name)
+    reference.initialize(solver=solver, h=0.01, tol=1e-7)
+    run_steps(reference, 0.0, 20)
+    state = reference.get_state()
+    data = reference.serialize(state)
+    expected = run_steps(reference, 1.0, 20)
+
+    # the same instance, rolled back
+    reference.set_state(state)
+    assert run_steps(reference, 1.0, 20) == expected
+    # a fresh instance, from the serialized bytes
+    other = open_fmu(name)
+    other.initialize()
+    other.set_state(other.deserialize(data))
+    assert run_steps(other, 1.0, 20) == expected
+
+
+def test_serialized_state_restores_in_another_process(fmu_paths, unzipped, open_fmu, tmp_path):
+    fmu = open_fmu("DoublePendulum")
+    fmu.initialize(solver="ab4", h=0.01)
+    run_steps(fmu, 0.0, 10)
+    (tmp_path / "state.bin").write_bytes(fmu.serialize(fmu.get_state()))
+    expected = run_steps(fmu, 0.5, 10)
+    script = textwrap.dedent(f"""
+        import sys
+        from harness.fmu_instance import FmuInstance
+        fmu = FmuInstance({str(fmu_paths['DoublePendulum'])!r}, unzipdir={str(unzipped['DoublePendulum'])!r})
+        fmu.initialize()
+        fmu.set_state(fmu.deserialize(open({str(tmp_path / 'state.bin')!r}, 'rb').read()))
+        for i in range(10):
+            assert fmu.do_step(0.5 + i * 0.05, 0.05) == 0
+        print(repr(fmu.get('phi1', 'phi2', 'omega1', 'omega2', 'n_rhs', 'n_steps')))
+    """)
+    output = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, check=True).stdout
+    assert eval(output) == expected
+
+
+def test_corrupt_or_foreign_state_is_rejected(open_fmu):
+    simple, double = open_fmu("SimplePendulum"), open_fmu("DoublePendulum")
+    simple.initialize()
+    double.initialize()
+    data = bytearray(simple.serialize(simple.get_state()))
+    data[100] ^= 0x10
+    size = len(data)
+    with pytest.raises(Exception):
+        simple.deserialize(bytes(data))
+    assert "corrupt" in simple.last_message()
+    with pytest.raises(Exception):
+        simple.deserialize(bytes(data[:size - 8]))
+    assert "size" in simple.last_message()
+    foreign = double.get_state()
+    assert simple.call("fmi2SetFMUstate", foreign) == ERROR
+    assert "another FMU" in simple.last_message() or "not made by this FMU" in simple.last_message()
+    assert simple.do_step(0.0, 0.1) == OK  # the instance is unharmed
+
+
+# ---------------------------------------------------------------- failure
+
+@pytest.mark.parametrize("name,values,method", [
+    ("DoublePendulum", {"solver": "euler", "h": 0.3}, "euler"),
+    ("SpringPendulum", {"solver": "rk4", "h": 0.2, "D": 5000.0}, "rk4"),
+    ("SpringPendulum", {"solver": "ab6", "h": 0.3, "D": 100.0}, "ab6"),
+])
+def test_blow_up_gives_discard_with_last_good_state(open_fmu, name, values, method):
+    fmu = open_fmu(name)
+    fmu.initialize(**values)
+    t, H, status = 0.0, 1.0, OK
+    while status == OK and t < 1e4:
+        status = fmu.do_step(t, H)
+        t += H
+    assert status == DISCARD
+    last = fmu.last_successful_time()
+    assert t - H <= last < t
+    outputs = fmu.get(*STATES[name], *POSITION[name], "E")
+    assert all(math.isfinite(v) for v in outputs)
+    message = fmu.last_message()
+    assert method in message and f"h = {values['h']:g}" in message and "last successful time" in message
+    # Stepping on is illegal after a discard; restoring a state makes the instance usable again.
+    assert fmu.do_step(last, 0.1) == ERROR and "illegal call sequence" in fmu.last_message()
+
+
+def test_singular_spring_pendulum_discards(open_fmu):
+    """The mass driven through the anchor (r = l0 + eps <= 0) stops at the last substep before."""
+    fmu = open_fmu("SpringPendulum")
+    fmu.initialize(solver="rk4", h=0.001, phi=0.0, eps=-0.5, v_eps=-3.0, g=0.0, D=1e-6)
+    assert fmu.do_step(0.0, 1.0) == DISCARD
+    last = fmu.last_successful_time()
+    eps, = fmu.get("eps")
+    assert 0.1 < last < 0.2 and -1.0 < eps < -0.99  # hits r = 0 at t = 1/6
+    assert fmu.get_state() is not None
+
+
+def test_rkf45_discard_reports_the_tolerance(open_fmu):
+    fmu = open_fmu("SpringPendulum")
+    fmu.initialize(solver="rkf45", phi=0.0, eps=-0.5, v_eps=-3.0, g=0.0, D=1e-6)
+    assert fmu.do_step(0.0, 1.0) == DISCARD
+    assert "rkf45" in fmu.last_message() and 0.16 < fmu.last_successful_time() < 1 / 6 + 1e-6
+
+
+# ---------------------------------------------------------------- bad input
+
+@pytest.mark.parametrize("name,values,words", [
+    ("SimplePendulum", {"L": -1.0}, ["fmi2SetReal", "L", "-1", "[1e-09, inf]"]),
+    ("SimplePendulum", {"L": float("nan")}, ["fmi2SetReal", "L", "nan", "not a finite number"]),
+    ("SimplePendulum", {"m": 0.0}, ["fmi2SetReal", "m", "= 0", "[1e-09, inf]"]),
+    ("SimplePendulum", {"h": float("inf")}, ["fmi2SetReal", "h", "inf"]),
+    ("SimplePendulum", {"d": -0.1}, ["fmi2SetReal", "d", "-0.1", "[0, inf]"]),
+    ("SimplePendulum", {"solver": 13}, ["fmi2SetInteger", "solver", "13", "[1, 12]"]),
+    ("SimplePendulum", {"tol": 0.0}, ["fmi2SetReal", "tol", "[1e-14, 1]"]),
+    ("DoublePendulum", {"J1": -0.01}, ["fmi2SetReal", "J1", "-0.01", "[0, inf]"]),
+    ("DoublePendulum", {"l1": 0.0}, ["fmi2SetReal", "l1", "[1e-09, inf]"]),
+    ("SpringPendulum", {"D": -15.0}, ["fmi2SetReal", "D", "-15"]),
+    ("Spring", {"k": 0.0}, ["fmi2SetReal", "k", "[1e-09, inf]"]),
+    ("Spring", {"l0": -1.0}, ["fmi2SetReal", "l0", "[0, inf]"]),
+    ("Spring", {"a_x": float("inf")}, ["fmi2SetReal", "a_x", "inf"]),
+])
+def test_bad_values_give_error_and_message_and_change_nothing(open_fmu, name, values, words):
+    fmu = open_fmu(name)
+    assert fmu.set(**values) == ERROR
+    message = fmu.last_message()
+    assert all(w in message for w in words), message
+    fmu.initialize()  # the defaults are intact: initialization and a step still work
+    assert fmu.do_step(0.0, 0.1) == OK
+
+
+def test_unknown_value_references(open_fmu):
+    fmu = open_fmu("SimplePendulum")
+    fmu.initialize()
+    out = (ctypes.c_double * 1)()
+    assert fmu.call("fmi2GetReal", (ctypes.c_uint * 1)(999), 1, out) == ERROR
+    assert "unknown value reference 999" in fmu.last_message()
+    assert fmu.call("fmi2SetBoolean", (ctypes.c_uint * 1)(0), 1, (ctypes.c_int * 1)(1)) == ERROR
+    assert "no Boolean variables" in fmu.last_message()
+    assert fmu.call("fmi2GetReal", None, 1, out) == ERROR and "NULL" in fmu.last_message()
+
+
+def test_calls_out_of_order_and_fixed_parameters_after_initialization(open_fmu):
+    fmu = open_fmu("SimplePendulum")
+    assert fmu.do_step(0.0, 0.1) == ERROR
+    assert "fmi2DoStep: illegal call sequence" in fmu.last_message() and "instantiated" in fmu.last_message()
+    fmu.initialize()
+    assert fmu.set(L=2.0) == ERROR
+    assert "fixed parameter" in fmu.last_message() and "stepComplete" in fmu.last_message()
+    assert fmu.set(x=1.0) == ERROR and "calculated output" in fmu.last_message()
+    assert fmu.set(solver="ab4", h=0.01) == OK  # tunable
+    assert fmu.do_step(0.0, 0.0) == ERROR and "communicationStepSize = 0" in fmu.last_message()
+    assert fmu.do_step(0.0, -1.0) == ERROR
+    assert fmu.call("fmi2ExitInitializationMode") == ERROR
+    assert fmu.do_step(0.0, 0.1) == OK
+
+
+def test_inconsistent_parameters_are_refused_at_initialization(open_fmu):
+    fmu = open_fmu("DoublePendulum")
+    assert fmu.set(J1=0.0, s1=0.0) == OK
+    fmu.fmu.setupExperiment(startTime=0.0)
+    assert fmu.call("fmi2EnterInitializationMode") == OK
+    assert fmu.call("fmi2ExitInitializationMode") == ERROR
+    assert "J1 + m1 s1^2 = 0 must be > 0" in fmu.last_message()
+
+
+def test_start_values_with_non_finite_outputs_are_refused(open_fmu):
+    """Finite states whose kinetic energy overflows: refused at initialization, not NaN later."""
+    fmu = open_fmu("SimplePendulum")
+    assert fmu.set(m=1e300, omega=1e200) == OK
+    assert fmu.call("fmi2EnterInitializationMode") == OK
+    assert fmu.call("fmi2ExitInitializationMode") == ERROR
+    assert "non-finite" in fmu.last_message()
+
+
+def test_too_many_substeps_is_an_error_not_a_hang(open_fmu):
+    fmu = open_fmu("SimplePendulum")
+    fmu.initialize(h=1e-9)
+    assert fmu.do_step(0.0, 1e3) == ERROR and "substeps" in fmu.last_message()
+
+
+def test_wrong_guid_and_type_at_instantiation(fmu_paths, unzipped):
+    from fmpy.fmi2 import FMU2Slave
+    from harness.fmu_instance import LogCollector
+    log = LogCollector()
+    slave = FMU2Slave(guid="{00000000-0000-0000-0000-000000000000}", unzipDirectory=unzipped["SimplePendulum"],
+                      modelIdentifier="SimplePendulum", instanceName="wrong")
+    with pytest.raises(Exception):
+        slave.instantiate(callbacks=log.callbacks)
+    assert "does not match this FMU" in log.messages[-1].text
+    slave.freeLibrary()
+
+
+# ---------------------------------------------------------------- input and output derivatives
+
+def test_input_derivative_ramps_the_force_over_one_step(open_fmu):
+    """F_x = 0 with slope 2 N/s over one 1 s step equals the reference with F_x(t) = 2 t."""
+    fmu = open_fmu("SimplePendulum")
+    fmu.initialize(solver="rk4", h=0.001)
+    assert fmu.set_input_derivatives(F_x=2.0) == OK
+    assert fmu.do_step(0.0, 1.0) == OK
+    phi, omega, F_x = fmu.get("phi", "omega", "F_x")
+
+    def rhs(t, y):
+        return [y[1], -9.81 * np.sin(y[0]) + 2.0 * t * np.cos(y[0])]
+
+    ref = solve_ivp(rhs, (0, 1), [0.5, 0.0], rtol=1e-12, atol=1e-12, method="DOP853").y[:, -1]
+    assert abs(phi - ref[0]) < 1e-9 and abs(omega - ref[1]) < 1e-9
+    assert F_x == pytest.approx(2.0)  # the input is at its value for the FMU's current time
+    # The slope held for that step only.
+    assert fmu.do_step(1.0, 0.5) == OK and fmu.get("F_x")[0] == pytest.approx(2.0)
+
+
+@pytest.mark.parametrize("name", PENDULUMS)
+def test_output_derivatives_are_exact(open_fmu, name):
+    """Against a second-order finite difference of the outputs along the trajectory."""
+    fmu = open_fmu(name)
+    fmu.initialize(solver="nystrom5", h=1e-4, F_x=0.7, F_y=-0.4, d=0.3)
+    assert fmu.do_step(0.0, 0.3) == OK
+    outputs = [v.name for v in fmu.model_description.modelVariables
+               if v.causality == "output" and v.type == "Real"]
+    rates = fmu.output_derivatives(*outputs)
+    delta = 1e-4
+    samples = [np.array(fmu.get(*outputs))]
+    for i in range(2):
+        assert fmu.do_step(0.3 + i * delta, delta) == OK
+        samples.append(np.array(fmu.get(*outputs)))
+    finite_difference = (-3 * samples[0] + 4 * samples[1] - samples[2]) / (2 * delta)
+    scale = 1 + np.abs(rates)
+    assert np.all(np.abs(rates - finite_difference) < 1e-6 * scale), dict(zip(outputs, rates - finite_difference))
+
+
+def test_spring_outputs_belong_to_the_end_of_the_step(open_fmu):
+    fmu = open_fmu("Spring")
+    fmu.initialize(k=10.0, c=2.0, l0=1.0, a_x=0.0, b_x=1.0, b_vx=0.5)
+    assert fmu.set_input_derivatives(b_vx=1.0) == OK
+    assert fmu.do_step(0.0, 1.0) == OK
+    # b_x = 1 + 0.5 + 1/2 = 2, relative velocity 0.5 + 1 = 1.5
+    Fa_x, Fb_x, E = fmu.get("Fa_x", "Fb_x", "E_pot")
+    assert Fa_x == pytest.approx(10 * 1.0 + 2 * 1.5) and Fb_x == pytest.approx(-Fa_x)
+    assert E == pytest.approx(5.0)
+    # Setting the inputs after the step does not change the outputs until the next step.
+    assert fmu.set(b_x=5.0) == OK and fmu.get("Fa_x")[0] == pytest.approx(Fa_x)
+
+
+def test_spring_at_zero_length(open_fmu):
+    zero_rest = open_fmu("Spring")
+    zero_rest.initialize(l0=0.0, b_x=0.0, c=3.0)
+    assert zero_rest.do_step(0.0, 0.1) == OK and zero_rest.get("Fa_x", "Fa_y") == [0.0, 0.0]
+    pre_stressed = open_fmu("Spring")
+    pre_stressed.initialize(b_x=0.0, b_vx=0.0)
+    assert pre_stressed.do_step(0.0, 0.1) == DISCARD
+    assert "singular" in pre_stressed.last_message()
+
+
+# ---------------------------------------------------------------- closed-form linear model
+
+@pytest.mark.parametrize("g,d,H", [(9.81, 0.0, 0.25), (9.81, 0.5, 0.25), (9.81, 2 * math.sqrt(9.81), 0.25),
+                                   (9.81, 40.0, 0.25), (0.0, 0.0, 0.25), (0.0, 3.0, 0.25), (9.81, 0.3, 1e-6),
+                                   (9.81, 0.3, 7.0), (1e-8, 5.0, 3.0)])
+def test_linear_model_is_solved_exactly(open_fmu, g, d, H):
+    fmu = open_fmu("SimplePendulum")
+    fmu.initialize(model="linear", g=g, d=d, L=1.0, phi=0.3, omega=-0.2, F_x=0.4)
+    assert fmu.set_input_derivatives(F_x=-0.6) == OK
+    assert fmu.do_step(0.0, H) == OK
+    phi, omega, n_rhs, n_steps = fmu.get("phi", "omega", "n_rhs", "n_steps")
+    force = 0.4 - 0.6 * H / 2  # held at its mid-step value
+
+    def rhs(t, y):
+        return [y[1], -g * y[0] - d * y[1] + force]
+
+    ref = solve_ivp(rhs, (0, H), [0.3, -0.2], rtol=1e-13, atol=1e-14, method="DOP853").y[:, -1]
+    assert abs(phi - ref[0]) < 1e-10 and abs(omega - ref[1]) < 1e-10 * (1 + abs(ref[1]))
+    assert n_rhs == 0 and n_steps == 1
+
+
+def test_linear_model_conserves_its_energy(fmu_paths, unzipped):
+    r = simulate(fmu_paths["SimplePendulum"], 50.0, 0.5, start_values={"model": "linear", "phi": 0.2},
+                 unzipdir=unzipped["SimplePendulum"])
+    assert np.max(np.abs(r["E"] - r["E"][0])) < 1e-12
+    assert np.max(np.abs(r["phi"] - 0.2 * np.cos(np.sqrt(9.81) * r.time))) < 1e-12
+
+
+# ---------------------------------------------------------------- instances side by side
+
+def test_instances_do_not_share_data(open_fmu):
+    first, second = open_fmu("DoublePendulum"), open_fmu("DoublePendulum")
+    first.initialize(solver="ab4", h=0.01)
+    second.initialize(solver="rk4", h=0.02, phi1=0.3)
+    for i in range(20):  # interleaved
+        assert first.do_step(i * 0.05, 0.05) == OK and second.do_step(i * 0.05, 0.05) == OK
+    alone = open_fmu("DoublePendulum")
+    alone.initialize(solver="ab4", h=0.01)
+    for i in range(20):
+        assert alone.do_step(i * 0.05, 0.05) == OK
+    assert first.get("phi1", "phi2", "omega1", "omega2") == alone.get("phi1", "phi2", "omega1", "omega2")

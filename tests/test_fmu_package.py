@@ -1,0 +1,147 @@
+"""What the FMU files contain, and that C and XML cannot disagree."""
+from __future__ import annotations
+
+import shutil
+import subprocess
+import sys
+import zipfile
+from pathlib import Path
+
+import fmpy
+import numpy as np
+import pytest
+from fmpy import read_model_description
+from fmpy.validation import validate_fmu
+
+from harness.fmus import FMU_NAMES, PROJECT_ROOT
+from harness.simulation import simulate
+
+SPEC_DEFAULTS = {
+    "SimplePendulum": {"g": 9.81, "d": 0, "anchor_x": 0, "anchor_y": 0, "h": 0.008, "tol": 1e-6, "L": 1, "m": 1,
+                       "phi": 0.5, "omega": 0, "F_x": 0, "F_y": 0},
+    "DoublePendulum": {"m1": 1, "m2": 1, "J1": 1 / 12, "J2": 1 / 12, "s1": 0.5, "s2": 0.5, "l1": 1, "l2": 1,
+                       "phi1": np.pi / 2, "phi2": np.pi / 2, "omega1": 0, "omega2": 0, "h": 0.008},
+    "SpringPendulum": {"m": 1, "D": 15, "l0": 1, "phi": 0.75 * np.pi, "eps": 0, "omega": 0, "v_eps": 0},
+    "Spring": {"k": 10, "c": 0, "l0": 1},
+}
+PENDULUM_OUTPUTS = {"E_kin", "E_pot", "E", "n_rhs", "n_steps", "n_rejected"}
+SOLVERS = ["euler", "midpoint", "heun", "rk3", "rk4", "rkf45", "nystrom5", "ab2", "ab3", "ab4", "ab5", "ab6"]
+
+
+@pytest.mark.parametrize("name", FMU_NAMES)
+def test_fmpy_validation_finds_no_problem(fmu_paths, name):
+    assert validate_fmu(str(fmu_paths[name])) == []
+
+
+@pytest.mark.parametrize("name", FMU_NAMES)
+def test_contents_and_spec_defaults(fmu_paths, name):
+    with zipfile.ZipFile(fmu_paths[name]) as archive:
+        files = set(archive.namelist())
+        html = archive.read("documentation/index.html").decode()
+    assert {"modelDescription.xml", f"binaries/linux64/{name}.so", "documentation/index.html",
+            "sources/model_description.h", "sources/physics.c"} <= files
+    assert "<h2>Equations</h2>" in html and "<h2>Variables</h2>" in html
+    md = read_model_description(str(fmu_paths[name]))
+    variables = {v.name: v for v in md.modelVariables}
+    for variable, value in SPEC_DEFAULTS[name].items():
+        assert float(variables[variable].start) == pytest.approx(value, rel=1e-15), variable
+    if name != "Spring":
+        assert PENDULUM_OUTPUTS <= {n for n, v in variables.items() if v.causality == "output"}
+        assert [item.name for item in variables["solver"].declaredType.items] == SOLVERS
+        assert variables["solver"].start == "5" and variables["solver"].variability == "tunable"
+        assert variables["L" if "L" in variables else "g"].variability == "fixed"
+    cs = md.coSimulation
+    assert cs.canHandleVariableCommunicationStepSize and cs.canGetAndSetFMUstate and cs.canSerializeFMUstate
+    assert cs.canInterpolateInputs and cs.maxOutputDerivativeOrder == 1
+    assert md.modelExchange is not None
+
+
+def test_guids_are_distinct(fmu_paths):
+    guids = [read_model_description(str(p)).guid for p in fmu_paths.values()]
+    assert len(set(guids)) == len(guids)
+
+
+@pytest.mark.parametrize("name", FMU_NAMES)
+def test_binary_exports_only_fmi2_and_needs_only_libc_and_libm(fmu_paths, unzipped, name):
+    library = Path(unzipped[name]) / "binaries" / "linux64" / f"{name}.so"
+    symbols = subprocess.run(["nm", "-D", "--defined-only", str(library)], capture_output=True, text=True,
+                             check=True).stdout.split("\n")
+    exported = [line.split()[-1] for line in symbols if line.strip()]
+    assert exported and all(s.startswith("fmi2") for s in exported), exported
+    assert len(exported) == 44  # the whole FMI 2.0 API: common, Model Exchange and Co-Simulation functions
+    dynamic = subprocess.run(["readelf", "-d", str(library)], capture_output=True, text=True, check=True).stdout
+    needed = {line.split("[")[1].rstrip("]") for line in dynamic.splitlines() if "(NEEDED)" in line}
+    assert needed <= {"libc.so.6", "libm.so.6"}, needed
+
+
+@pytest.mark.parametrize("name", ["SimplePendulum", "Spring"])
+def test_sources_rebuild_with_fmpy(fmu_paths, unzipped, tmp_path, name):
+    """fmpy.build.build_platform_binary compiles sources/ into a working binary with the same results."""
+    from fmpy.build import build_platform_binary
+    copy = tmp_path / "fmu"
+    shutil.copytree(unzipped[name], copy)
+    shutil.rmtree(copy / "binaries")
+    (tmp_path / "build").mkdir()
+    build_platform_binary(str(copy), str(tmp_path / "build"))
+    assert (copy / "binaries" / "linux64" / f"{name}.so").is_file()
+    rebuilt = simulate(fmu_paths[name], 2.0, 0.1, unzipdir=str(copy))
+    original = simulate(fmu_paths[name], 2.0, 0.1, unzipdir=unzipped[name])
+    assert rebuilt.columns == original.columns
+    assert np.allclose(rebuilt.values, original.values, rtol=1e-12, atol=1e-12)
+
+
+def test_prototypes_match_the_standard_headers(tmp_path):
+    """The framework compiles against the FMI standard's own headers (shipped with fmpy) too."""
+    headers = Path(fmpy.__file__).parent / "c-code"
+    generated = PROJECT_ROOT / "build" / "generated" / "SimplePendulum"
+    for source in ("fmi2_functions.c", "stepper.c"):
+        subprocess.run(["gcc", "-std=c99", "-fsyntax-only", "-Werror=incompatible-pointer-types",
+                        "-DUSE_STANDARD_FMI2_HEADERS", f"-I{headers}", f"-I{generated}",
+                        f"-I{PROJECT_ROOT / 'fmus' / 'framework'}", f"-I{PROJECT_ROOT / 'fmus' / 'models' / 'SimplePendulum'}",
+                        str(PROJECT_ROOT / "fmus" / "framework" / source)], check=True)
+
+
+def run_codegen(tmp_path: Path, xml_files: list[Path]) -> subprocess.CompletedProcess:
+    return subprocess.run([sys.executable, str(PROJECT_ROOT / "tools" / "fmu_codegen.py"), "--out", str(tmp_path / "gen"),
+                           "--models", str(PROJECT_ROOT / "fmus" / "models"),
+                           "--sources", "fmi2_functions.c", "stepper.c", "integrators.c", "physics.c",
+                           "--xml", *map(str, xml_files)], capture_output=True, text=True)
+
+
+def broken_copy(tmp_path: Path, name: str, old: str, new: str) -> Path:
+    text = (PROJECT_ROOT / "modelDescription" / f"{name}.xml").read_text()
+    assert old in text
+    path = tmp_path / f"{name}.xml"
+    path.write_text(text.replace(old, new, 1))
+    return path
+
+
+def test_codegen_accepts_the_repository_xml(tmp_path):
+    xml = [PROJECT_ROOT / "modelDescription" / f"{n}.xml" for n in FMU_NAMES]
+    result = run_codegen(tmp_path, xml)
+    assert result.returncode == 0, result.stderr
+    header = (tmp_path / "gen" / "SimplePendulum" / "model_description.h").read_text()
+    assert "#define VR_phi 0" in header and "#define SOLVER_RK4 5" in header
+
+
+@pytest.mark.parametrize("old,new,message", [
+    ('name="omega" valueReference="1"', 'name="omega" valueReference="7"', "value references must be"),
+    ('<File name="physics.c"/>', '', "SourceFiles"),
+    ('name="der(omega)"', 'name="der(phi)"', "is the derivative of omega"),
+    ('<Real unit="m" start="1" min="1e-9"/>', '<Real unit="m" start="-1" min="1e-9"/>', "below its min"),
+])
+def test_codegen_refuses_inconsistent_xml(tmp_path, old, new, message):
+    broken = broken_copy(tmp_path, "SimplePendulum", old, new)
+    result = run_codegen(tmp_path, [broken])
+    assert result.returncode == 1 and message in result.stderr, result.stderr
+
+
+def test_codegen_refuses_a_duplicated_guid(tmp_path):
+    simple = (PROJECT_ROOT / "modelDescription" / "SimplePendulum.xml").read_text()
+    guid = simple.split('guid="')[1].split('"')[0]
+    double = (PROJECT_ROOT / "modelDescription" / "DoublePendulum.xml").read_text()
+    other = double.split('guid="')[1].split('"')[0]
+    path = tmp_path / "DoublePendulum.xml"
+    path.write_text(double.replace(other, guid))
+    result = run_codegen(tmp_path, [PROJECT_ROOT / "modelDescription" / "SimplePendulum.xml", path])
+    assert result.returncode == 1 and "share a GUID" in result.stderr
