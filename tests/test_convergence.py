@@ -85,3 +85,22 @@ def test_rkf45_rejects_and_recovers(open_fmu):
     # Five new stages per attempt; the first stage is evaluated once per accepted point and
     # reused when a step from there is retried.
     assert fmu.get("n_rhs")[0] == 5 * (n_steps + n_rejected) + n_steps
+
+
+ENERGY_STEPS = {1: [2e-4, 1e-4, 5e-5], 2: [2e-3, 1e-3, 5e-4], 3: [4e-3, 2e-3, 1e-3], 4: [8e-3, 4e-3, 2e-3],
+                5: [0.01, 0.005, 0.0025], 6: [0.004, 0.002, 0.001]}
+
+
+@pytest.mark.parametrize("name", ["DoublePendulum", "SpringPendulum"])
+@pytest.mark.parametrize("solver", list(ORDERS))
+def test_energy_is_conserved_to_the_method_order(fmu_paths, unzipped, name, solver):
+    """Without damping or force the energy drift over 2 s shrinks at least like h^p."""
+    order = ORDERS[solver]
+    hs = ENERGY_STEPS[order]
+    drifts = []
+    for h in hs:
+        r = simulate(fmu_paths[name], 2.0, 0.1, start_values={"solver": solver, "h": h}, unzipdir=unzipped[name])
+        drifts.append(float(np.max(np.abs(r["E"] - r["E"][0]))))
+    assert drifts[-1] < 0.05
+    measured = slope(hs, drifts)
+    assert measured >= order - 0.3, f"{name} {solver}: energy error order {measured:.2f}, drifts {drifts}"
