@@ -129,7 +129,9 @@ class FmuInstance:
 
     def call(self, function: str, *args) -> int:
         """A raw fmi2 call by name, returning its status (fmpy's wrappers raise instead)."""
-        return getattr(self.fmu.dll, function)(self.fmu.component, *args)
+        # As c_void_p: for a function fmpy did not declare (a CS function on an ME instance) ctypes
+        # would otherwise pass the handle as a 32-bit int.
+        return getattr(self.fmu.dll, function)(ctypes.c_void_p(self.fmu.component), *args)
 
     # ---- life cycle
     def initialize(self, start_time: float = 0.0, **start_values) -> None:
