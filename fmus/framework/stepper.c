@@ -67,8 +67,8 @@ int state_acceptable(const void *context, const double *x)
 static fmi2Status fail(Instance *inst, double t, double t_good, const char *method, double h)
 {
     finish(inst, t, t_good - t, t_good);
-    log_discard(inst, "fmi2DoStep: %s with h = %g: the state became non-finite or singular after t = %.17g; "
-                "stopped at the last successful time %.17g", method, h, t_good, t_good);
+    log_discard(inst, "fmi2DoStep: %s with h = %g: the state would become non-finite or singular in the substep "
+                "after t = %.17g; stopped there (last successful time %.17g)", method, h, t_good, t_good);
     return fmi2Discard;
 }
 

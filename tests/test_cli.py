@@ -1,0 +1,46 @@
+"""The command line: user errors give one line and exit code 2; results so far are kept."""
+from __future__ import annotations
+
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+
+def harness(*args: str, cwd=None) -> subprocess.CompletedProcess:
+    return subprocess.run([sys.executable, "-m", "harness", *args], capture_output=True, text=True, cwd=cwd)
+
+
+@pytest.mark.parametrize("args,words", [
+    (["simulate", "Nope"], "unknown FMU 'Nope'"),
+    (["simulate", "SimplePendulum", "--set", "L=-1"], "L (value reference 10) = -1 is out of its allowed range"),
+    (["simulate", "SimplePendulum", "--solver", "rk9"], "'rk9' is not one of euler"),
+    (["simulate", "missing.fmu"], "no such FMU file"),
+    (["simulate", "SimplePendulum", "--set", "foo=1"], "no variable 'foo'"),
+    (["simulate", "SimplePendulum", "--step", "-1"], "must be a positive number"),
+])
+def test_user_errors_are_one_line(fmu_paths, tmp_path, args, words):
+    result = harness(*args, "--out", str(tmp_path / "x.csv"))
+    assert result.returncode == 2
+    lines = result.stderr.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith("harness: error:") and words in lines[0], result.stderr
+    assert "Traceback" not in result.stderr
+
+
+def test_discard_keeps_the_results_so_far(fmu_paths, tmp_path):
+    out = tmp_path / "blow.csv"
+    result = harness("simulate", "SpringPendulum", "--solver", "euler", "--h", "0.3", "--set", "D=5000",
+                     "--out", str(out))
+    assert result.returncode == 1 and "euler with h = 0.3" in result.stderr
+    table = np.loadtxt(out, delimiter=",", skiprows=1)
+    assert len(table) > 10 and np.all(np.isfinite(table))
+
+
+def test_simulate_writes_csv_and_plot(fmu_paths, tmp_path):
+    result = harness("simulate", "DoublePendulum", "--stop", "1", "--solver", "ab4", "--h", "0.01",
+                     "--out", str(tmp_path / "d.csv"), "--plot", str(tmp_path / "d.png"))
+    assert result.returncode == 0, result.stderr
+    header = (tmp_path / "d.csv").read_text().splitlines()[0].split(",")
+    assert header[0] == "time" and {"x2", "y2", "E", "n_rhs"} <= set(header)
+    assert (tmp_path / "d.png").stat().st_size > 10_000
