@@ -62,6 +62,40 @@ def command_demo(args: argparse.Namespace) -> int:
     return 0
 
 
+def command_run(args: argparse.Namespace) -> int:
+    from harness.master import Master, MasterOptions
+    from harness.system import load_system
+    system = load_system(args.system)
+    stop = args.stop if args.stop is not None else system.stop
+    step = args.step if args.step is not None else system.step
+    if stop is None or step is None:
+        raise HarnessError(f"{args.system} defines no stop time or step: give --stop and --step")
+    options = MasterOptions(stop=stop, step=step, algorithm=args.algorithm, extrapolation=args.extrapolation,
+                            on_discard=args.on_discard, progress=not args.quiet)
+    out = Path(args.out)
+    out.parent.mkdir(parents=True, exist_ok=True)
+    with Master(system, options) as master, out.open("w") as stream:
+        header_written = False
+
+        def write_row(row) -> None:  # rows go out as they come: a stopped run keeps what it computed
+            nonlocal header_written
+            if not header_written:
+                stream.write(",".join(master_columns) + "\n")
+                header_written = True
+            stream.write(",".join(f"{v:.17g}" for v in row) + "\n")
+
+        master_columns = ["time"] + [f"{u.name}.{n}" for u in master.units for n in u.real_outputs] + \
+                         [f"{u.name}.{n}" for u in master.units for n in u.integer_outputs]
+        result = master.run(on_row=write_row)
+    print(f"wrote {out}: {result.macro_steps} macro steps of {step:g} s, {args.algorithm}, {args.extrapolation} "
+          f"extrapolation; energy residual {result.energy_residual:.3e} J"
+          + (f", {result.retries} retried steps" if result.retries else ""))
+    if result.stopped_at is not None:
+        print(f"harness: stopped at t = {result.stopped_at:g}: {result.message}", file=sys.stderr)
+        return 1
+    return 0
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog="harness", description="Pendulum FMUs: simulate, couple, validate, chart.")
     sub = parser.add_subparsers(dest="command", required=True)
@@ -76,6 +110,18 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--out", default="result.csv", help="CSV file to write")
     p.add_argument("--plot", help="PNG file for the trace of the moving mass")
     p.set_defaults(run=command_simulate)
+
+    p = sub.add_parser("run", help="co-simulate a system (SSP .ssp/.ssd/folder or a scene .json), write CSV")
+    p.add_argument("system", help="an .ssp archive, an .ssd file, a folder with SystemStructure.ssd, or a scene .json")
+    p.add_argument("--stop", type=float, help="stop time [s] (default: the system's)")
+    p.add_argument("--step", type=float, help="communication step [s] (default: the system's)")
+    p.add_argument("--algorithm", choices=["jacobi", "gauss-seidel"], default="gauss-seidel")
+    p.add_argument("--extrapolation", choices=["hold", "linear"], default="linear")
+    p.add_argument("--on-discard", choices=["stop", "retry"], default="stop",
+                   help="after fmi2Discard: stop, or roll back and retry with halved steps")
+    p.add_argument("--out", default="run.csv", help="CSV file: time and <component>.<output> columns")
+    p.add_argument("--quiet", action="store_true", help="no progress lines")
+    p.set_defaults(run=command_run)
 
     p = sub.add_parser("demo", help="the main job: build the FMUs, run the thesis scene, write CSV and traces")
     p.add_argument("--out", default="out", help="output folder (default out/)")

@@ -44,3 +44,26 @@ def test_simulate_writes_csv_and_plot(fmu_paths, tmp_path):
     header = (tmp_path / "d.csv").read_text().splitlines()[0].split(",")
     assert header[0] == "time" and {"x2", "y2", "E", "n_rhs"} <= set(header)
     assert (tmp_path / "d.png").stat().st_size > 10_000
+
+
+def test_run_writes_every_output_of_every_component(fmu_paths, tmp_path):
+    from harness.fmus import PROJECT_ROOT
+    out = tmp_path / "run.csv"
+    result = harness("run", str(PROJECT_ROOT / "scenes" / "coupled_pendulums.json"), "--stop", "0.5", "--step", "0.05",
+                     "--algorithm", "jacobi", "--extrapolation", "hold", "--out", str(out), "--quiet")
+    assert result.returncode == 0, result.stderr
+    lines = out.read_text().splitlines()
+    assert lines[0].startswith("time,spring.Fa_x,") and "left.n_rhs" in lines[0] and len(lines) == 12
+
+
+@pytest.mark.parametrize("content,words", [
+    ("{not json", "cannot read the scene file"),
+    ('{"components": {"a": {"fmu": "SimplePendulum"}}, "connections": [["a.x", "a.nothing"]]}', "no input 'nothing'"),
+    ('{"components": {"a": {"fmu": "SimplePendulum"}, "b": {"fmu": "SimplePendulum"}}, '
+     '"connections": [["a.phi", "b.F_x"]]}', "units differ (rad to N)"),
+])
+def test_run_rejects_broken_systems(fmu_paths, tmp_path, content, words):
+    scene = tmp_path / "scene.json"
+    scene.write_text(content)
+    result = harness("run", str(scene), "--stop", "1", "--step", "0.1", "--out", str(tmp_path / "x.csv"))
+    assert result.returncode == 2 and words in result.stderr and "Traceback" not in result.stderr, result.stderr

@@ -386,3 +386,11 @@ def test_instances_do_not_share_data(open_fmu):
     for i in range(20):
         assert alone.do_step(i * 0.05, 0.05) == OK
     assert first.get("phi1", "phi2", "omega1", "omega2") == alone.get("phi1", "phi2", "omega1", "omega2")
+
+
+def test_spring_outputs_never_overflow_silently(open_fmu):
+    fmu = open_fmu("Spring")
+    fmu.initialize(k=1e10)
+    assert fmu.set(b_x=1e160) == OK
+    assert fmu.do_step(0.0, 0.1) == DISCARD  # E_pot = k/2 (r - l0)^2 would overflow
+    assert "non-finite outputs" in fmu.last_message() and fmu.last_successful_time() == 0.0

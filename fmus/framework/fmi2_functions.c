@@ -238,6 +238,15 @@ static fmi2Status ensure_outputs(Instance *inst, const char *function)
         log_discard(inst, "%s: the outputs are undefined in the current (singular) configuration", function);
         return fmi2Discard;
     }
+    {
+        int i;
+        for (i = 0; i < N_REAL; i++)
+            if (!isfinite(inst->s.real[i])) {
+                log_discard(inst, "%s: %s is not finite for the current inputs and states", function,
+                            REAL_VARIABLES[i].name);
+                return fmi2Discard;
+            }
+    }
     inst->outputs_valid = 1;
     return fmi2OK;
 }

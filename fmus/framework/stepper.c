@@ -11,16 +11,25 @@
 
 #if N_STATES == 0
 
+static int outputs_finite(const double *real)
+{
+    int i;
+    for (i = 0; i < N_REAL; i++)
+        if (!isfinite(real[i])) return 0;
+    return 1;
+}
+
 fmi2Status step_to(Instance *inst, double t, double H)
 {
     double before[N_REAL];
     memcpy(before, inst->s.real, sizeof before);
     model_advance_inputs(inst->s.real, inst->s.input_derivative, H);
-    /* The outputs belong to the end of the step; a singular end keeps the step from happening. */
-    if (!model_outputs(&inst->constants, NULL, inst->s.real)) {
+    /* The outputs belong to the end of the step; a singular or overflowing end keeps the step from
+     * happening. */
+    if (!model_outputs(&inst->constants, NULL, inst->s.real) || !outputs_finite(inst->s.real)) {
         memcpy(inst->s.real, before, sizeof before);
         inst->outputs_valid = 0;
-        log_discard(inst, "fmi2DoStep: singular configuration at t = %.17g (the outputs are undefined there); "
+        log_discard(inst, "fmi2DoStep: singular configuration or non-finite outputs at t = %.17g; "
                     "last successful time %.17g", t + H, t);
         inst->s.last_successful_time = t;
         return fmi2Discard;

@@ -1,0 +1,358 @@
+"""The co-simulation master: Jacobi or Gauss-Seidel over a fixed communication grid, inputs held or
+extrapolated linearly, fmi2Discard handled by rollback and smaller steps or a clear stop.
+
+In FMI 2.0 an input and its derivative are values at the start of the receiving step. With linear
+extrapolation a source that has not stepped yet hands over y(t) and its output derivative; in
+Gauss-Seidel a source that has already stepped hands over y(t) with the slope (y(t+H) - y(t))/H,
+which is second-order accurate without making a receiver such as the Spring advance y(t+H) again.
+
+The loop calls the FMUs' C functions directly with preallocated ctypes arrays: per FMU and macro
+step one fmi2SetReal, one fmi2DoStep, one fmi2GetReal (plus the derivative calls for linear
+extrapolation and an fmi2GetInteger where a component has Integer outputs).
+"""
+from __future__ import annotations
+
+import ctypes
+import math
+import sys
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Callable
+
+import numpy as np
+
+from harness.errors import HarnessError
+from harness.fmu_instance import DISCARD, ERROR, OK, STATUS_NAMES, FmuInstance
+from harness.simulation import communication_grid
+from harness.system import System
+
+ALGORITHMS = ("jacobi", "gauss-seidel")
+EXTRAPOLATIONS = ("hold", "linear")
+
+
+@dataclass
+class MasterOptions:
+    stop: float
+    step: float
+    start: float = 0.0
+    algorithm: str = "gauss-seidel"
+    extrapolation: str = "linear"
+    on_discard: str = "stop"  # "stop", or "retry": roll back (FMU states) and halve the step
+    max_halvings: int = 10
+    progress: bool = False
+
+    def __post_init__(self) -> None:
+        if self.algorithm not in ALGORITHMS:
+            raise HarnessError(f"--algorithm {self.algorithm!r}: choose one of {', '.join(ALGORITHMS)}")
+        if self.extrapolation not in EXTRAPOLATIONS:
+            raise HarnessError(f"--extrapolation {self.extrapolation!r}: choose one of {', '.join(EXTRAPOLATIONS)}")
+        if self.on_discard not in ("stop", "retry"):
+            raise HarnessError(f"on_discard {self.on_discard!r}: choose stop or retry")
+
+
+@dataclass
+class CoSimulationResult:
+    columns: list[str]
+    values: np.ndarray  # one row per communication point, first column time
+    energy: np.ndarray  # total energy of the components (sum of E, or E_pot where a component has no E)
+    stopped_at: float | None = None
+    message: str | None = None
+    macro_steps: int = 0
+    retries: int = 0
+    messages: list[str] = field(default_factory=list)
+
+    def __getitem__(self, name: str) -> np.ndarray:
+        try:
+            return self.values[:, self.columns.index(name)]
+        except ValueError:
+            raise KeyError(f"no column {name!r}") from None
+
+    @property
+    def time(self) -> np.ndarray:
+        return self.values[:, 0]
+
+    @property
+    def energy_residual(self) -> float:
+        """Largest |E_total(t) - E_total(0)|: the energy the coupling created or destroyed (for a
+        system without damping)."""
+        return float(np.max(np.abs(self.energy - self.energy[0]))) if len(self.energy) else 0.0
+
+    def write_csv(self, path: str | Path) -> None:
+        np.savetxt(path, self.values, delimiter=",", header=",".join(self.columns), comments="", fmt="%.17g")
+
+
+def _doubles(n: int):
+    return (ctypes.c_double * max(n, 1))()
+
+
+class _Unit:
+    """One component with its preallocated buffers."""
+
+    def __init__(self, component, system: System):
+        self.name = component.name
+        self.instance = FmuInstance(component.fmu, name=component.name)
+        self.start = component.start
+        variables = self.instance.model_description.modelVariables
+        self.real_outputs = [v.name for v in variables if v.causality == "output" and v.type == "Real"]
+        self.integer_outputs = [v.name for v in variables if v.causality == "output" and v.type != "Real"]
+        self.inputs = [c for c in system.connections if c.target == self.name]
+        for c in self.inputs:
+            variable = self.instance.variables.get(c.input)
+            if variable is None or variable.causality != "input":
+                raise HarnessError(f"connection {c}: {self.name} has no input {c.input!r}")
+        n_out, n_in, n_int = len(self.real_outputs), len(self.inputs), len(self.integer_outputs)
+        self.out_vrs = (ctypes.c_uint * max(n_out, 1))(*[self.instance.reference(n) for n in self.real_outputs])
+        self.int_vrs = (ctypes.c_uint * max(n_int, 1))(*[self.instance.reference(n) for n in self.integer_outputs])
+        self.in_vrs = (ctypes.c_uint * max(n_in, 1))(*[self.instance.reference(c.input) for c in self.inputs])
+        self.orders_out = (ctypes.c_int * max(n_out, 1))(*([1] * n_out))
+        self.orders_in = (ctypes.c_int * max(n_in, 1))(*([1] * n_in))
+        self.y_next, self.dy_next = _doubles(n_out), _doubles(n_out)  # after this unit's step
+        self.u, self.du = _doubles(n_in), _doubles(n_in)
+        self.ints = (ctypes.c_int * max(n_int, 1))()
+        self.n_out, self.n_in, self.n_int = n_out, n_in, n_int
+        # numpy views on the ctypes buffers: routing is vectorised, no per-variable Python work
+        self.y_next_view = np.ctypeslib.as_array(self.y_next)[:n_out]
+        self.dy_next_view = np.ctypeslib.as_array(self.dy_next)[:n_out]
+        self.u_view = np.ctypeslib.as_array(self.u)[:n_in]
+        self.du_view = np.ctypeslib.as_array(self.du)[:n_in]
+        self.y_now = np.zeros(n_out)    # outputs at the start of the macro step
+        self.dy_now = np.zeros(n_out)   # their derivatives there
+        lib = self.instance.fmu.dll
+        self.component = ctypes.c_void_p(self.instance.fmu.component)
+        self.set_real, self.get_real, self.get_integer = lib.fmi2SetReal, lib.fmi2GetReal, lib.fmi2GetInteger
+        self.do_step = lib.fmi2DoStep
+        self.do_step.argtypes = [ctypes.c_void_p, ctypes.c_double, ctypes.c_double, ctypes.c_int]
+        self.set_derivatives = lib.fmi2SetRealInputDerivatives
+        self.get_derivatives = lib.fmi2GetRealOutputDerivatives
+        energy_name = "E" if "E" in self.real_outputs else "E_pot" if "E_pot" in self.real_outputs else None
+        self.energy_index = self.real_outputs.index(energy_name) if energy_name else None
+        self.state = ctypes.c_void_p()
+
+    def check(self, status: int, what: str) -> int:
+        if status >= ERROR:
+            raise HarnessError(f"{self.name}: {what} returned {STATUS_NAMES[status]}: {self.instance.last_message()}")
+        return status
+
+    def read_outputs(self, derivatives: bool) -> None:
+        self.check(self.get_real(self.component, self.out_vrs, self.n_out, self.y_next), "fmi2GetReal")
+        if derivatives:
+            self.check(self.get_derivatives(self.component, self.out_vrs, self.n_out, self.orders_out,
+                                            self.dy_next), "fmi2GetRealOutputDerivatives")
+
+    def free(self) -> None:
+        self.instance.free()
+
+
+class Master:
+    """Runs a System; build once, call run() once."""
+
+    def __init__(self, system: System, options: MasterOptions):
+        self.system, self.options = system, options
+        names = [c.name for c in system.components]
+        if len(set(names)) != len(names):
+            raise HarnessError(f"system {system.name!r}: component names must be unique")
+        self.units: list[_Unit] = []
+        try:
+            for component in system.components:
+                self.units.append(_Unit(component, system))
+        except Exception:
+            self.free()
+            raise
+        by_name = {u.name: u for u in self.units}
+        # For each receiving unit: (source unit, source output indices, input indices), vectorised.
+        self.routes: list[list[tuple[_Unit, np.ndarray, np.ndarray]]] = []
+        for unit in self.units:
+            grouped: dict[str, tuple[list[int], list[int]]] = {}
+            for k, c in enumerate(unit.inputs):
+                source = by_name.get(c.source)
+                if source is None:
+                    raise HarnessError(f"connection {c}: no component {c.source!r}")
+                if c.output not in source.real_outputs:
+                    raise HarnessError(f"connection {c}: {c.source} has no Real output {c.output!r}")
+                self._check_units(source, c.output, unit, c.input, c)
+                outs, ins = grouped.setdefault(c.source, ([], []))
+                outs.append(source.real_outputs.index(c.output))
+                ins.append(k)
+            self.routes.append([(by_name[s], np.array(o), np.array(i)) for s, (o, i) in grouped.items()])
+        self.order = {u.name: i for i, u in enumerate(self.units)}
+
+    @staticmethod
+    def _check_units(source: _Unit, output: str, target: _Unit, input_: str, connection) -> None:
+        a = source.instance.variables[output].unit
+        b = target.instance.variables[input_].unit
+        if a and b and a != b:
+            raise HarnessError(f"connection {connection}: units differ ({a} to {b})")
+
+    # ---- setup
+    def _initialize(self) -> None:
+        linear = self.options.extrapolation == "linear"
+        for unit in self.units:
+            inst = unit.instance
+            inst._require(inst.call("fmi2SetupExperiment", 0, 0.0, ctypes.c_double(self.options.start), 0, 0.0),
+                          "fmi2SetupExperiment")
+            inst._require(inst.set(**unit.start), "setting start values")
+            inst._require(inst.call("fmi2EnterInitializationMode"), "fmi2EnterInitializationMode")
+        # Copy connected outputs to inputs until they settle, so that forces at t = 0 are consistent.
+        for _ in range(50):
+            change = 0.0
+            for unit in self.units:
+                unit.read_outputs(False)
+                unit.y_now[:] = unit.y_next_view
+            for unit, routes in zip(self.units, self.routes):
+                if not unit.n_in:
+                    continue
+                before = unit.u_view.copy()
+                for source, outs, ins in routes:
+                    unit.u_view[ins] = source.y_now[outs]
+                unit.check(unit.set_real(unit.component, unit.in_vrs, unit.n_in, unit.u), "fmi2SetReal")
+                change = max(change, float(np.max(np.abs(unit.u_view - before))))
+            if change <= 1e-14:
+                break
+        for unit in self.units:
+            unit.instance._require(unit.instance.call("fmi2ExitInitializationMode"), "fmi2ExitInitializationMode")
+            unit.read_outputs(linear)
+            unit.y_now[:] = unit.y_next_view
+            if linear:
+                unit.dy_now[:] = unit.dy_next_view
+
+    # ---- one macro step
+    def _feed(self, k: int, H: float, stepped: set[str]) -> None:
+        """Sets the inputs of unit k for the step [t, t + H]."""
+        unit = self.units[k]
+        if not unit.n_in:
+            return
+        linear = self.options.extrapolation == "linear"
+        for source, outs, ins in self.routes[k]:
+            if source.name in stepped:
+                if linear:
+                    unit.u_view[ins] = source.y_now[outs]
+                    unit.du_view[ins] = (source.y_next_view[outs] - source.y_now[outs]) / H
+                else:
+                    unit.u_view[ins] = source.y_next_view[outs]
+            else:
+                unit.u_view[ins] = source.y_now[outs]
+                if linear:
+                    unit.du_view[ins] = source.dy_now[outs]
+        unit.check(unit.set_real(unit.component, unit.in_vrs, unit.n_in, unit.u), "fmi2SetReal")
+        if linear:
+            unit.check(unit.set_derivatives(unit.component, unit.in_vrs, unit.n_in, unit.orders_in, unit.du),
+                       "fmi2SetRealInputDerivatives")
+
+    def _macro_step(self, t: float, H: float) -> tuple[int, _Unit | None]:
+        """Steps every unit from t to t + H; returns (status, the unit that discarded)."""
+        linear = self.options.extrapolation == "linear"
+        stepped: set[str] = set()
+        if self.options.algorithm == "jacobi":
+            for k in range(len(self.units)):
+                self._feed(k, H, stepped)
+            for unit in self.units:
+                status = unit.check(unit.do_step(unit.component, t, H, 1), f"fmi2DoStep at t = {t}")
+                if status == DISCARD:
+                    return DISCARD, unit
+            for unit in self.units:
+                unit.read_outputs(linear)
+        else:
+            for k, unit in enumerate(self.units):
+                self._feed(k, H, stepped)
+                status = unit.check(unit.do_step(unit.component, t, H, 1), f"fmi2DoStep at t = {t}")
+                if status == DISCARD:
+                    return DISCARD, unit
+                unit.read_outputs(linear)
+                stepped.add(unit.name)
+        for unit in self.units:
+            unit.y_now[:] = unit.y_next_view
+            if linear:
+                unit.dy_now[:] = unit.dy_next_view
+        return OK, None
+
+    def _save_states(self) -> None:
+        for unit in self.units:
+            unit.check(unit.instance.call("fmi2GetFMUstate", ctypes.byref(unit.state)), "fmi2GetFMUstate")
+
+    def _restore_states(self, y_now: list[np.ndarray], dy_now: list[np.ndarray]) -> None:
+        for unit, y, dy in zip(self.units, y_now, dy_now):
+            unit.check(unit.instance.call("fmi2SetFMUstate", unit.state), "fmi2SetFMUstate")
+            unit.y_now[:], unit.dy_now[:] = y, dy
+
+    def _advance(self, t: float, H: float, depth: int = 0) -> tuple[int, _Unit | None, int]:
+        """[t, t + H] in one macro step or, after a discard with on_discard="retry", in halves."""
+        retry = self.options.on_discard == "retry"
+        if retry:
+            self._save_states()
+            saved = ([u.y_now.copy() for u in self.units], [u.dy_now.copy() for u in self.units])
+        status, culprit = self._macro_step(t, H)
+        if status != DISCARD or not retry or depth >= self.options.max_halvings:
+            return status, culprit, 0
+        self._restore_states(*saved)
+        status, culprit, retries = self._advance(t, H / 2, depth + 1)
+        if status == DISCARD:
+            return status, culprit, retries + 1
+        status, culprit, more = self._advance(t + H / 2, H / 2, depth + 1)
+        return status, culprit, retries + more + 1
+
+    # ---- the run
+    def run(self, on_row: Callable[[np.ndarray], None] | None = None) -> CoSimulationResult:
+        options = self.options
+        grid = communication_grid(options.start, options.stop, options.step)
+        columns = ["time"] + [f"{u.name}.{n}" for u in self.units for n in u.real_outputs] + \
+                  [f"{u.name}.{n}" for u in self.units for n in u.integer_outputs]
+        table = np.empty((len(grid), len(columns)))
+        energy = np.empty(len(grid))
+        has_energy = any(u.energy_index is not None for u in self.units)
+        stopped_at, message, retries, rows = None, None, 0, 0
+        self._initialize()
+        last_report = time.monotonic()
+
+        def record(t: float) -> None:
+            table[rows, 0] = t
+            column = 1
+            for unit in self.units:
+                table[rows, column:column + unit.n_out] = unit.y_now
+                column += unit.n_out
+            for unit in self.units:
+                if unit.n_int:
+                    unit.check(unit.get_integer(unit.component, unit.int_vrs, unit.n_int, unit.ints), "fmi2GetInteger")
+                    table[rows, column:column + unit.n_int] = unit.ints[:unit.n_int]
+                    column += unit.n_int
+            energy[rows] = sum(u.y_now[u.energy_index] for u in self.units if u.energy_index is not None) \
+                if has_energy else math.nan
+            if on_row is not None:
+                on_row(table[rows])
+
+        for k, t in enumerate(grid):
+            record(t)
+            rows += 1
+            if k + 1 == len(grid):
+                break
+            status, culprit, extra = self._advance(t, grid[k + 1] - t)
+            retries += extra
+            if status == DISCARD:
+                stopped_at = culprit.instance.last_successful_time()
+                message = (f"{culprit.name} could not complete the step from t = {t:g}"
+                           + (f" even with {2 ** options.max_halvings}x smaller steps" if options.on_discard == "retry"
+                              else "") + f": {culprit.instance.last_message()}")
+                break
+            if options.progress and time.monotonic() - last_report > 2.0:
+                last_report = time.monotonic()
+                print(f"  t = {grid[k + 1]:.4g} of {options.stop:g} s ({100 * (k + 1) / (len(grid) - 1):.0f}%)",
+                      file=sys.stderr)
+        messages = [f"{u.name}: {m}" for u in self.units for m in u.instance.log.messages]
+        return CoSimulationResult(columns, table[:rows], energy[:rows], stopped_at, message, rows - 1, retries,
+                                  messages)
+
+    def free(self) -> None:
+        for unit in self.units:
+            unit.free()
+        self.units = []
+
+    def __enter__(self) -> "Master":
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.free()
+
+
+def run_system(system: System, options: MasterOptions) -> CoSimulationResult:
+    with Master(system, options) as master:
+        return master.run()

@@ -1,0 +1,127 @@
+"""The master against an independent monolithic reference of the coupled pendulums: the two
+pendulums' and the spring's equations combined and integrated by scipy at tight tolerance."""
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+import pytest
+from scipy.integrate import solve_ivp
+
+from harness.fmus import PROJECT_ROOT, build_dir
+from harness.master import MasterOptions, run_system
+from harness.system import load_system
+from references import slope
+
+SCENE = PROJECT_ROOT / "scenes" / "coupled_pendulums.json"
+G, L, M, K, L0, GAP = 9.81, 1.0, 1.0, 10.0, 1.5, 1.5
+T = 3.0
+
+
+def monolithic(t_eval: np.ndarray, c: float = 0.0) -> dict[str, np.ndarray]:
+    def positions(y):
+        pa = np.array([L * np.sin(y[0]), -L * np.cos(y[0])])
+        pb = np.array([GAP + L * np.sin(y[2]), -L * np.cos(y[2])])
+        va = L * y[1] * np.array([np.cos(y[0]), np.sin(y[0])])
+        vb = L * y[3] * np.array([np.cos(y[2]), np.sin(y[2])])
+        return pa, pb, va, vb
+
+    def rhs(t, y):
+        pa, pb, va, vb = positions(y)
+        d = pb - pa
+        r = np.hypot(*d)
+        e = d / r
+        fa = (K * (r - L0) + c * (vb - va) @ e) * e
+        acc_a = -G / L * np.sin(y[0]) + (fa[0] * np.cos(y[0]) + fa[1] * np.sin(y[0])) / (M * L)
+        acc_b = -G / L * np.sin(y[2]) - (fa[0] * np.cos(y[2]) + fa[1] * np.sin(y[2])) / (M * L)
+        return [y[1], acc_a, y[3], acc_b]
+
+    sol = solve_ivp(rhs, (t_eval[0], t_eval[-1]), [0.5, 0.0, 0.0, 0.0], method="DOP853", rtol=1e-12, atol=1e-12,
+                    t_eval=t_eval)
+    return {"left.x": L * np.sin(sol.y[0]), "left.y": -L * np.cos(sol.y[0]),
+            "right.x": GAP + L * np.sin(sol.y[2]), "right.y": -L * np.cos(sol.y[2])}
+
+
+def position_error(result) -> float:
+    reference = monolithic(result.time)
+    return float(max(np.max(np.hypot(result["left.x"] - reference["left.x"], result["left.y"] - reference["left.y"])),
+                     np.max(np.hypot(result["right.x"] - reference["right.x"],
+                                     result["right.y"] - reference["right.y"]))))
+
+
+@pytest.fixture(scope="module")
+def system(fmu_paths):
+    return load_system(SCENE)
+
+
+STEPS = [0.04, 0.02, 0.01, 0.005]
+
+
+@pytest.fixture(scope="module")
+def errors(system) -> dict[tuple[str, str], list[float]]:
+    table = {}
+    for algorithm in ("jacobi", "gauss-seidel"):
+        for extrapolation in ("hold", "linear"):
+            table[algorithm, extrapolation] = [
+                position_error(run_system(system, MasterOptions(stop=T, step=H, algorithm=algorithm,
+                                                                extrapolation=extrapolation)))
+                for H in STEPS]
+    return table
+
+
+@pytest.mark.parametrize("algorithm", ["jacobi", "gauss-seidel"])
+def test_held_inputs_converge_at_first_order(errors, algorithm):
+    measured = slope(STEPS, errors[algorithm, "hold"])
+    assert 0.8 <= measured <= 1.3, errors[algorithm, "hold"]
+
+
+@pytest.mark.parametrize("algorithm", ["jacobi", "gauss-seidel"])
+def test_linear_extrapolation_converges_at_second_order(errors, algorithm):
+    measured = slope(STEPS, errors[algorithm, "linear"])
+    assert 1.7 <= measured <= 2.4, errors[algorithm, "linear"]
+
+
+@pytest.mark.parametrize("extrapolation", ["hold", "linear"])
+def test_gauss_seidel_no_worse_than_jacobi(errors, extrapolation):
+    for gs, jacobi in zip(errors["gauss-seidel", extrapolation], errors["jacobi", extrapolation]):
+        assert gs <= jacobi * 1.05
+
+
+def test_energy_residual_tends_to_zero(system):
+    residuals = [run_system(system, MasterOptions(stop=T, step=H)).energy_residual for H in STEPS]
+    assert all(a > b for a, b in zip(residuals, residuals[1:]))
+    assert slope(STEPS, residuals) >= 1.5 and residuals[-1] < 1e-3
+
+
+def test_result_table_and_consistent_start(system):
+    result = run_system(system, MasterOptions(stop=0.5, step=0.1))
+    assert result.columns[0] == "time" and len(result.values) == 6
+    assert np.allclose(result.time, [0, 0.1, 0.2, 0.3, 0.4, 0.5])
+    outputs = {"left": 12, "spring": 5, "right": 12}  # every output of every component
+    assert len(result.columns) == 1 + sum(outputs.values())
+    # At t = 0 the spring already sees the bobs' start positions (initialization iterates the loop).
+    pa = np.array([np.sin(0.5), -np.cos(0.5)])
+    pb = np.array([GAP, -1.0])
+    d = pb - pa
+    force = K * (np.hypot(*d) - L0) * d / np.hypot(*d)
+    assert np.allclose([result["spring.Fa_x"][0], result["spring.Fa_y"][0]], force, rtol=1e-12)
+
+
+def test_ssp_forms_give_the_same_result(system):
+    options = MasterOptions(stop=1.0, step=0.01)
+    expected = run_system(system, options).values
+    for path in (build_dir() / "scenes" / "coupled_pendulums.ssp", build_dir() / "scenes" / "coupled_pendulums",
+                 build_dir() / "scenes" / "coupled_pendulums" / "SystemStructure.ssd"):
+        assert np.array_equal(run_system(load_system(path), options).values, expected), path
+
+
+def test_discard_stops_with_a_message_or_retries_with_smaller_steps(system):
+    stiff = dataclasses.replace(system, components=[dataclasses.replace(c, start={**c.start, "solver": "euler", "h": 0.05})
+                                                    if c.name != "spring" else c for c in system.components])
+    stiff.component("spring").start = {**stiff.component("spring").start, "k": 4000.0}
+    stopped = run_system(stiff, MasterOptions(stop=2.0, step=0.05, on_discard="stop"))
+    assert stopped.stopped_at is not None and "could not complete the step" in stopped.message
+    assert np.all(np.isfinite(stopped.values))
+    retried = run_system(stiff, MasterOptions(stop=2.0, step=0.05, on_discard="retry", max_halvings=3))
+    assert retried.retries > 0
+    assert retried.stopped_at is None or retried.stopped_at >= stopped.stopped_at
