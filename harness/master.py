@@ -24,6 +24,7 @@ import numpy as np
 
 from harness.errors import HarnessError
 from harness.fmu_instance import DISCARD, ERROR, OK, STATUS_NAMES, FmuInstance
+from harness.results import TimeTable
 from harness.simulation import communication_grid
 from harness.system import System
 
@@ -52,34 +53,19 @@ class MasterOptions:
 
 
 @dataclass
-class CoSimulationResult:
-    columns: list[str]
-    values: np.ndarray  # one row per communication point, first column time
-    energy: np.ndarray  # total energy of the components (sum of E, or E_pot where a component has no E)
+class CoSimulationResult(TimeTable):
+    energy: np.ndarray = field(default_factory=lambda: np.zeros(0))  # sum of E (or E_pot) over the components
     stopped_at: float | None = None
     message: str | None = None
     macro_steps: int = 0
     retries: int = 0
     messages: list[str] = field(default_factory=list)
 
-    def __getitem__(self, name: str) -> np.ndarray:
-        try:
-            return self.values[:, self.columns.index(name)]
-        except ValueError:
-            raise KeyError(f"no column {name!r}") from None
-
-    @property
-    def time(self) -> np.ndarray:
-        return self.values[:, 0]
-
     @property
     def energy_residual(self) -> float:
         """Largest |E_total(t) - E_total(0)|: the energy the coupling created or destroyed (for a
         system without damping)."""
         return float(np.max(np.abs(self.energy - self.energy[0]))) if len(self.energy) else 0.0
-
-    def write_csv(self, path: str | Path) -> None:
-        np.savetxt(path, self.values, delimiter=",", header=",".join(self.columns), comments="", fmt="%.17g")
 
 
 def _doubles(n: int):

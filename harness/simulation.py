@@ -14,28 +14,14 @@ import numpy as np
 
 from harness.errors import HarnessError
 from harness.fmu_instance import DISCARD, ERROR, STATUS_NAMES, FmuInstance
+from harness.results import TimeTable
 
 
 @dataclass
-class SimulationResult:
-    fmu: str
-    columns: list[str]
-    values: np.ndarray  # one row per communication point, the first column is time
+class SimulationResult(TimeTable):
+    fmu: str = ""
     discarded_at: float | None = None  # time of the last good point when a step was discarded
     messages: list[str] = field(default_factory=list)
-
-    def __getitem__(self, name: str) -> np.ndarray:
-        try:
-            return self.values[:, self.columns.index(name)]
-        except ValueError:
-            raise KeyError(f"no column {name!r}; columns are {', '.join(self.columns)}") from None
-
-    @property
-    def time(self) -> np.ndarray:
-        return self.values[:, 0]
-
-    def write_csv(self, path: str | Path) -> None:
-        np.savetxt(path, self.values, delimiter=",", header=",".join(self.columns), comments="", fmt="%.17g")
 
 
 def communication_grid(start_time: float, stop_time: float, step: float) -> np.ndarray:
@@ -95,5 +81,5 @@ def simulate(fmu: str | Path, stop_time: float, step: float = 0.01, start_time: 
             if status >= ERROR:
                 raise HarnessError(f"{Path(fmu).name}: fmi2DoStep at t = {t} returned {STATUS_NAMES[status]}: "
                                    f"{instance.last_message()}")
-        return SimulationResult(Path(fmu).stem, columns, table[:rows], discarded_at,
+        return SimulationResult(columns, table[:rows], Path(fmu).stem, discarded_at,
                                 [str(m) for m in instance.log.messages])

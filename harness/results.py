@@ -1,0 +1,26 @@
+"""A table of values over time, addressed by column name: what simulations return."""
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+
+@dataclass
+class TimeTable:
+    columns: list[str]
+    values: np.ndarray  # one row per communication point, the first column is time
+
+    def __getitem__(self, name: str) -> np.ndarray:
+        try:
+            return self.values[:, self.columns.index(name)]
+        except ValueError:
+            raise KeyError(f"no column {name!r}; columns are {', '.join(self.columns)}") from None
+
+    @property
+    def time(self) -> np.ndarray:
+        return self.values[:, 0]
+
+    def write_csv(self, path: str | Path) -> None:
+        np.savetxt(path, self.values, delimiter=",", header=",".join(self.columns), comments="", fmt="%.17g")
