@@ -71,7 +71,8 @@ def command_run(args: argparse.Namespace) -> int:
     if stop is None or step is None:
         raise HarnessError(f"{args.system} defines no stop time or step: give --stop and --step")
     options = MasterOptions(stop=stop, step=step, algorithm=args.algorithm, extrapolation=args.extrapolation,
-                            on_discard=args.on_discard, progress=not args.quiet)
+                            on_discard=args.on_discard, progress=not args.quiet, iterate_tol=args.iterate,
+                            tolerance=args.tolerance)
     out = Path(args.out)
     out.parent.mkdir(parents=True, exist_ok=True)
     with Master(system, options) as master, out.open("w") as stream:
@@ -89,7 +90,8 @@ def command_run(args: argparse.Namespace) -> int:
         result = master.run(on_row=write_row)
     print(f"wrote {out}: {result.macro_steps} macro steps of {step:g} s, {args.algorithm}, {args.extrapolation} "
           f"extrapolation; energy residual {result.energy_residual:.3e} J"
-          + (f", {result.retries} retried steps" if result.retries else ""))
+          + (f", {result.retries} retried steps" if result.retries else "")
+          + (f", {result.iterations} iteration passes ({result.unconverged} unconverged)" if args.iterate else ""))
     if result.stopped_at is not None:
         print(f"harness: stopped at t = {result.stopped_at:g}: {result.message}", file=sys.stderr)
         return 1
@@ -119,6 +121,11 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--extrapolation", choices=["hold", "linear"], default="linear")
     p.add_argument("--on-discard", choices=["stop", "retry"], default="stop",
                    help="after fmi2Discard: stop, or roll back and retry with halved steps")
+    p.add_argument("--iterate", type=float, metavar="TOL",
+                   help="iterate each macro step (rollback through FMU states) until the outputs change by < TOL")
+    p.add_argument("--tolerance", type=float, metavar="TOL",
+                   help="adapt the macro step by step doubling so that the coupling error stays below TOL; "
+                        "--step is then the output interval and the largest macro step")
     p.add_argument("--out", default="run.csv", help="CSV file: time and <component>.<output> columns")
     p.add_argument("--quiet", action="store_true", help="no progress lines")
     p.set_defaults(run=command_run)

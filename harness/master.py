@@ -17,7 +17,6 @@ import math
 import sys
 import time
 from dataclasses import dataclass, field
-from pathlib import Path
 from typing import Callable
 
 import numpy as np
@@ -41,6 +40,9 @@ class MasterOptions:
     extrapolation: str = "linear"
     on_discard: str = "stop"  # "stop", or "retry": roll back (FMU states) and halve the step
     max_halvings: int = 10
+    iterate_tol: float | None = None  # iterate each macro step to this change in the outputs
+    max_iterations: int = 20
+    tolerance: float | None = None    # adapt the macro step by step doubling to this error per step
     progress: bool = False
 
     def __post_init__(self) -> None:
@@ -50,6 +52,10 @@ class MasterOptions:
             raise HarnessError(f"--extrapolation {self.extrapolation!r}: choose one of {', '.join(EXTRAPOLATIONS)}")
         if self.on_discard not in ("stop", "retry"):
             raise HarnessError(f"on_discard {self.on_discard!r}: choose stop or retry")
+        for name in ("iterate_tol", "tolerance"):
+            value = getattr(self, name)
+            if value is not None and not (value > 0 and math.isfinite(value)):
+                raise HarnessError(f"{name} = {value} must be a positive number")
 
 
 @dataclass
@@ -58,8 +64,10 @@ class CoSimulationResult(TimeTable):
     stopped_at: float | None = None
     message: str | None = None
     macro_steps: int = 0
-    retries: int = 0
+    retries: int = 0  # macro steps redone: after a discard, or rejected by step doubling
     messages: list[str] = field(default_factory=list)
+    iterations: int = 0  # passes of iterated macro steps
+    unconverged: int = 0  # iterated macro steps that reached max_iterations
 
     @property
     def energy_residual(self) -> float:
@@ -113,7 +121,7 @@ class _Unit:
         self.get_derivatives = lib.fmi2GetRealOutputDerivatives
         energy_name = "E" if "E" in self.real_outputs else "E_pot" if "E_pot" in self.real_outputs else None
         self.energy_index = self.real_outputs.index(energy_name) if energy_name else None
-        self.state = ctypes.c_void_p()
+        self.states = [ctypes.c_void_p(), ctypes.c_void_p()]
 
     def check(self, status: int, what: str) -> int:
         if status >= ERROR:
@@ -161,7 +169,8 @@ class Master:
                 outs.append(source.real_outputs.index(c.output))
                 ins.append(k)
             self.routes.append([(by_name[s], np.array(o), np.array(i)) for s, (o, i) in grouped.items()])
-        self.order = {u.name: i for i, u in enumerate(self.units)}
+        self.iterations = self.unconverged = self.macro_steps = 0
+        self.h_proposal: float | None = None
 
     @staticmethod
     def _check_units(source: _Unit, output: str, target: _Unit, input_: str, connection) -> None:
@@ -252,30 +261,119 @@ class Master:
                 unit.dy_now[:] = unit.dy_next_view
         return OK, None
 
-    def _save_states(self) -> None:
+    # ---- rollback through FMU states (slot 0: step control and discard retry, slot 1: iteration)
+    def _save(self, slot: int) -> list[tuple[np.ndarray, np.ndarray]]:
         for unit in self.units:
-            unit.check(unit.instance.call("fmi2GetFMUstate", ctypes.byref(unit.state)), "fmi2GetFMUstate")
+            unit.check(unit.instance.call("fmi2GetFMUstate", ctypes.byref(unit.states[slot])), "fmi2GetFMUstate")
+        return [(unit.y_now.copy(), unit.dy_now.copy()) for unit in self.units]
 
-    def _restore_states(self, y_now: list[np.ndarray], dy_now: list[np.ndarray]) -> None:
-        for unit, y, dy in zip(self.units, y_now, dy_now):
-            unit.check(unit.instance.call("fmi2SetFMUstate", unit.state), "fmi2SetFMUstate")
+    def _restore(self, slot: int, saved: list[tuple[np.ndarray, np.ndarray]]) -> None:
+        for unit, (y, dy) in zip(self.units, saved):
+            unit.check(unit.instance.call("fmi2SetFMUstate", unit.states[slot]), "fmi2SetFMUstate")
             unit.y_now[:], unit.dy_now[:] = y, dy
+
+    def _iterated_step(self, t: float, H: float) -> tuple[int, _Unit | None]:
+        """Fixed-point iteration of one macro step: every input varies linearly from its source's
+        value at t to the source's value at t + H from the previous pass (the first pass uses the
+        extrapolation), until the outputs at t + H change by less than iterate_tol (1 + |y|)."""
+        linear = self.options.extrapolation == "linear"
+        saved = self._save(1)
+        guess = [unit.y_now + H * unit.dy_now if linear else unit.y_now.copy() for unit in self.units]
+        index = {unit.name: k for k, unit in enumerate(self.units)}
+        for iteration in range(1, self.options.max_iterations + 1):
+            self.iterations += 1
+            for k, unit in enumerate(self.units):
+                if not unit.n_in:
+                    continue
+                for source, outs, ins in self.routes[k]:
+                    unit.u_view[ins] = source.y_now[outs]
+                    unit.du_view[ins] = (guess[index[source.name]][outs] - source.y_now[outs]) / H
+                unit.check(unit.set_real(unit.component, unit.in_vrs, unit.n_in, unit.u), "fmi2SetReal")
+                unit.check(unit.set_derivatives(unit.component, unit.in_vrs, unit.n_in, unit.orders_in, unit.du),
+                           "fmi2SetRealInputDerivatives")
+            for unit in self.units:
+                if unit.check(unit.do_step(unit.component, t, H, 1), f"fmi2DoStep at t = {t}") == DISCARD:
+                    return DISCARD, unit
+            change = 0.0
+            for unit, g in zip(self.units, guess):
+                unit.read_outputs(linear)
+                change = max(change, float(np.max(np.abs(unit.y_next_view - g) / (1.0 + np.abs(unit.y_next_view)),
+                                                  initial=0.0)))
+            if change <= self.options.iterate_tol or iteration == self.options.max_iterations:
+                if change > self.options.iterate_tol:
+                    self.unconverged += 1
+                for unit in self.units:
+                    unit.y_now[:] = unit.y_next_view
+                    if linear:
+                        unit.dy_now[:] = unit.dy_next_view
+                return OK, None
+            guess = [unit.y_next_view.copy() for unit in self.units]
+            self._restore(1, saved)
+        raise AssertionError("unreachable")
+
+    def _trial(self, t: float, H: float) -> tuple[int, _Unit | None]:
+        return self._iterated_step(t, H) if self.options.iterate_tol else self._macro_step(t, H)
 
     def _advance(self, t: float, H: float, depth: int = 0) -> tuple[int, _Unit | None, int]:
         """[t, t + H] in one macro step or, after a discard with on_discard="retry", in halves."""
         retry = self.options.on_discard == "retry"
-        if retry:
-            self._save_states()
-            saved = ([u.y_now.copy() for u in self.units], [u.dy_now.copy() for u in self.units])
-        status, culprit = self._macro_step(t, H)
+        saved = self._save(0) if retry else None
+        status, culprit = self._trial(t, H)
         if status != DISCARD or not retry or depth >= self.options.max_halvings:
             return status, culprit, 0
-        self._restore_states(*saved)
+        self._restore(0, saved)
         status, culprit, retries = self._advance(t, H / 2, depth + 1)
         if status == DISCARD:
             return status, culprit, retries + 1
         status, culprit, more = self._advance(t + H / 2, H / 2, depth + 1)
         return status, culprit, retries + more + 1
+
+    def _outputs(self) -> np.ndarray:
+        return np.concatenate([unit.y_now for unit in self.units])
+
+    def _advance_adaptive(self, t: float, t_end: float) -> tuple[int, _Unit | None, int]:
+        """[t, t_end] in macro steps chosen by step doubling: one step of h against two of h/2 from
+        the same state (rolled back in between); the difference, divided by 2^p - 1, estimates the
+        coupling error of the two half steps, which are kept when it is within
+        tolerance (1 + |y|) h / duration. Controlling the error per unit step keeps the sum of the
+        local errors, and so the global error, near the tolerance."""
+        duration = self.options.stop - self.options.start
+        order = 2 if self.options.extrapolation == "linear" or self.options.iterate_tol else 1
+        smallest = (t_end - t) / 2 ** 20
+        h = min(self.h_proposal or (t_end - t), t_end - t)
+        rejected = 0
+        while t < t_end:
+            last = h >= t_end - t
+            step = t_end - t if last else h
+            saved = self._save(0)
+            status, culprit = self._trial(t, step)
+            if status != DISCARD:
+                full = self._outputs()
+                self._restore(0, saved)
+                status, culprit = self._trial(t, step / 2)
+                if status != DISCARD:
+                    status, culprit = self._trial(t + step / 2, step / 2)
+            if status == DISCARD:
+                error = math.inf
+            else:
+                half = self._outputs()
+                error = float(np.max(np.abs(half - full) / (1.0 + np.abs(half)))) / (2 ** order - 1) \
+                    / (self.options.tolerance * step / duration)
+            # local error ~ h^(p+1) against a bound ~ h: the step scales with error^(-1/p)
+            factor = 2.0 if error == 0 else min(2.0, max(0.2, 0.9 * error ** (-1.0 / order)))
+            if error <= 1.0:
+                t = t_end if last else t + step
+                self.macro_steps += 2
+                if not last or step >= h:
+                    h = step * factor
+            else:
+                self._restore(0, saved)
+                rejected += 1
+                h = step * min(factor, 0.5)
+                if h < smallest:
+                    return (DISCARD, culprit, rejected) if status == DISCARD else (ERROR, None, rejected)
+        self.h_proposal = h
+        return OK, None, rejected
 
     # ---- the run
     def run(self, on_row: Callable[[np.ndarray], None] | None = None) -> CoSimulationResult:
@@ -311,8 +409,16 @@ class Master:
             rows += 1
             if k + 1 == len(grid):
                 break
-            status, culprit, extra = self._advance(t, grid[k + 1] - t)
+            if options.tolerance:
+                status, culprit, extra = self._advance_adaptive(t, grid[k + 1])
+            else:
+                status, culprit, extra = self._advance(t, grid[k + 1] - t)
+                self.macro_steps += 1
             retries += extra
+            if status == ERROR:
+                stopped_at = t
+                message = f"step doubling could not meet the tolerance {options.tolerance:g} after t = {t:g}"
+                break
             if status == DISCARD:
                 stopped_at = culprit.instance.last_successful_time()
                 message = (f"{culprit.name} could not complete the step from t = {t:g}"
@@ -324,8 +430,8 @@ class Master:
                 print(f"  t = {grid[k + 1]:.4g} of {options.stop:g} s ({100 * (k + 1) / (len(grid) - 1):.0f}%)",
                       file=sys.stderr)
         messages = [f"{u.name}: {m}" for u in self.units for m in u.instance.log.messages]
-        return CoSimulationResult(columns, table[:rows], energy[:rows], stopped_at, message, rows - 1, retries,
-                                  messages)
+        return CoSimulationResult(columns, table[:rows], energy[:rows], stopped_at, message, self.macro_steps,
+                                  retries, messages, self.iterations, self.unconverged)
 
     def free(self) -> None:
         for unit in self.units:

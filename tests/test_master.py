@@ -116,12 +116,38 @@ def test_ssp_forms_give_the_same_result(system):
 
 
 def test_discard_stops_with_a_message_or_retries_with_smaller_steps(system):
-    stiff = dataclasses.replace(system, components=[dataclasses.replace(c, start={**c.start, "solver": "euler", "h": 0.05})
-                                                    if c.name != "spring" else c for c in system.components])
-    stiff.component("spring").start = {**stiff.component("spring").start, "k": 4000.0}
+    changes = {"spring": {"k": 4000.0}, "left": {"solver": "euler", "h": 0.05}, "right": {"solver": "euler", "h": 0.05}}
+    stiff = dataclasses.replace(system, components=[dataclasses.replace(c, start={**c.start, **changes[c.name]})
+                                                    for c in system.components])
     stopped = run_system(stiff, MasterOptions(stop=2.0, step=0.05, on_discard="stop"))
     assert stopped.stopped_at is not None and "could not complete the step" in stopped.message
     assert np.all(np.isfinite(stopped.values))
     retried = run_system(stiff, MasterOptions(stop=2.0, step=0.05, on_discard="retry", max_halvings=3))
     assert retried.retries > 0
     assert retried.stopped_at is None or retried.stopped_at >= stopped.stopped_at
+
+
+def test_iteration_converges_and_improves_on_a_single_pass(system):
+    single = run_system(system, MasterOptions(stop=T, step=0.04))
+    iterated = run_system(system, MasterOptions(stop=T, step=0.04, iterate_tol=1e-10))
+    assert iterated.unconverged == 0 and iterated.iterations > 2 * iterated.macro_steps
+    assert position_error(iterated) < position_error(single)
+    # Converged passes agree with each other: a looser tolerance gives nearly the same answer.
+    loose = run_system(system, MasterOptions(stop=T, step=0.04, iterate_tol=1e-6))
+    assert np.max(np.abs(loose.values[:, 1:] - iterated.values[:, 1:])) < 1e-4
+
+
+@pytest.mark.parametrize("extrapolation,tolerances", [("linear", [1e-3, 1e-4, 1e-5]), ("hold", [1e-2])])
+def test_step_doubling_meets_the_requested_accuracy(system, extrapolation, tolerances):
+    for tolerance in tolerances:
+        result = run_system(system, MasterOptions(stop=T, step=0.1, tolerance=tolerance, extrapolation=extrapolation))
+        assert result.stopped_at is None
+        assert position_error(result) <= tolerance, (extrapolation, tolerance)
+        assert np.allclose(result.time, np.arange(0, T + 1e-9, 0.1))  # rows stay on the output grid
+
+
+def test_bad_master_options_are_refused():
+    from harness.errors import HarnessError
+    for kwargs in ({"algorithm": "newton"}, {"extrapolation": "cubic"}, {"tolerance": -1.0}, {"iterate_tol": 0.0}):
+        with pytest.raises(HarnessError):
+            MasterOptions(stop=1.0, step=0.1, **kwargs)
