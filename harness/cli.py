@@ -98,6 +98,21 @@ def command_run(args: argparse.Namespace) -> int:
     return 0
 
 
+def command_validate(args: argparse.Namespace) -> int:
+    from harness.fmus import locate_fmu
+    from harness.validation import validate
+    failed = 0
+    for name in args.fmu:
+        path = locate_fmu(name)
+        checks = validate(path)
+        bad = sum(not c.passed for c in checks)
+        failed += bad
+        print(f"{path.name}: {len(checks) - bad} of {len(checks)} checks passed")
+        for check in checks:
+            print(check)
+    return 1 if failed else 0
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog="harness", description="Pendulum FMUs: simulate, couple, validate, chart.")
     sub = parser.add_subparsers(dest="command", required=True)
@@ -129,6 +144,10 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--out", default="run.csv", help="CSV file: time and <component>.<output> columns")
     p.add_argument("--quiet", action="store_true", help="no progress lines")
     p.set_defaults(run=command_run)
+
+    p = sub.add_parser("validate", help="check FMUs: fmpy validation, runtime conformance, physics and numerics")
+    p.add_argument("fmu", nargs="+", help=".fmu files or the project's FMU names")
+    p.set_defaults(run=command_validate)
 
     p = sub.add_parser("demo", help="the main job: build the FMUs, run the thesis scene, write CSV and traces")
     p.add_argument("--out", default="out", help="output folder (default out/)")

@@ -67,3 +67,19 @@ def test_run_rejects_broken_systems(fmu_paths, tmp_path, content, words):
     scene.write_text(content)
     result = harness("run", str(scene), "--stop", "1", "--step", "0.1", "--out", str(tmp_path / "x.csv"))
     assert result.returncode == 2 and words in result.stderr and "Traceback" not in result.stderr, result.stderr
+
+
+def test_validate_passes_our_fmu_and_fails_a_broken_one(fmu_paths, tmp_path):
+    import zipfile
+    result = harness("validate", "SimplePendulum")
+    assert result.returncode == 0, result.stdout
+    assert "FAIL" not in result.stdout and "order of rk4" in result.stdout and "Euler-Lagrange" in result.stdout
+    broken = tmp_path / "Broken.fmu"
+    with zipfile.ZipFile(fmu_paths["Spring"]) as source, zipfile.ZipFile(broken, "w") as target:
+        for item in source.infolist():
+            data = source.read(item)
+            if item.filename == "modelDescription.xml":
+                data = data.replace(b'<Unknown index="16"/>', b"", 1)  # drop an output from ModelStructure
+            target.writestr(item, data)
+    result = harness("validate", str(broken))
+    assert result.returncode == 1 and "FAIL  modelDescription (fmpy)" in result.stdout

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from harness.simulation import simulate
-from references import exact_simple_pendulum, slope
+from harness.reference import exact_simple_pendulum, slope
 
 ORDERS = {"euler": 1, "midpoint": 2, "heun": 2, "rk3": 3, "rk4": 4, "nystrom5": 5,
           "ab2": 2, "ab3": 3, "ab4": 4, "ab5": 5, "ab6": 6}

@@ -11,7 +11,7 @@ from scipy.integrate import solve_ivp
 from harness.fmus import PROJECT_ROOT, build_dir
 from harness.master import MasterOptions, run_system
 from harness.system import load_system
-from references import slope
+from harness.reference import slope
 
 SCENE = PROJECT_ROOT / "scenes" / "coupled_pendulums.json"
 G, L, M, K, L0, GAP = 9.81, 1.0, 1.0, 10.0, 1.5, 1.5

@@ -1,4 +1,4 @@
-"""Independent references: the exact simple pendulum and tight scipy integrations."""
+"""Independent references: the exact simple pendulum, and the measured order of a sequence."""
 from __future__ import annotations
 
 import numpy as np

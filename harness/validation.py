@@ -1,0 +1,157 @@
+"""validate: fmpy's model-description validation, quick runtime conformance checks for any FMU,
+and for the project's pendulums the physics and numerics checks (derivation, orders, energy)."""
+from __future__ import annotations
+
+import ctypes
+import math
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from harness.errors import HarnessError
+from harness.fmu_instance import ERROR, OK, FmuInstance
+from harness.reference import exact_simple_pendulum, slope
+
+PENDULUMS = ("SimplePendulum", "DoublePendulum", "SpringPendulum")
+
+
+@dataclass
+class Check:
+    fmu: str
+    name: str
+    passed: bool
+    detail: str
+
+    def __str__(self) -> str:
+        return f"  {'PASS' if self.passed else 'FAIL'}  {self.name}: {self.detail}"
+
+
+def _model_description_checks(path: Path) -> list[Check]:
+    from fmpy.validation import validate_fmu
+    problems = validate_fmu(str(path))
+    detail = "no problems" if not problems else "; ".join(problems[:5]) + (" ..." if len(problems) > 5 else "")
+    return [Check(path.name, "modelDescription (fmpy)", not problems, detail)]
+
+
+def _finite_outputs(instance: FmuInstance) -> tuple[bool, str]:
+    names = [v.name for v in instance.model_description.modelVariables if v.causality == "output"]
+    values = instance.get(*names)
+    bad = [n for n, v in zip(names, values) if not math.isfinite(v)]
+    return not bad, f"{len(names)} outputs finite" if not bad else f"non-finite: {', '.join(bad)}"
+
+
+def _runtime_checks(path: Path) -> list[Check]:
+    checks = []
+    md = FmuInstance(path).model_description  # read once; instances below are short-lived
+    step = md.defaultExperiment.stepSize if md.defaultExperiment and md.defaultExperiment.stepSize else 0.01
+    step = float(step)
+
+    def check(name: str, passed: bool, detail: str) -> None:
+        checks.append(Check(path.name, name, bool(passed), detail))
+
+    with FmuInstance(path) as fmu:
+        status = fmu.do_step(0.0, step)
+        check("illegal call refused", status == ERROR, f"fmi2DoStep before initialization returned status {status}")
+    with FmuInstance(path) as fmu:
+        fmu.initialize()
+        statuses = [fmu.do_step(i * step, step) for i in range(10)]
+        check("Co-Simulation steps", all(s == OK for s in statuses), f"10 steps of {step:g} s: statuses {set(statuses)}")
+        check("outputs finite", *_finite_outputs(fmu))
+        check("time exact", fmu.last_successful_time() == 9 * step + step,
+              f"after fmi2DoStep({9 * step!r}, {step!r}) the FMU's time is {fmu.last_successful_time()!r}")
+        if md.coSimulation.canGetAndSetFMUstate:
+            names = [v.name for v in md.modelVariables if v.causality == "output" and v.type == "Real"]
+            state = fmu.get_state()
+            data = fmu.serialize(state) if md.coSimulation.canSerializeFMUstate else None
+            for i in range(10, 15):
+                fmu.do_step(i * step, step)
+            expected = fmu.get(*names)
+            fmu.set_state(state)
+            for i in range(10, 15):
+                fmu.do_step(i * step, step)
+            check("FMU state round trip", fmu.get(*names) == expected, "get/set continues bit-identically")
+            if data is not None:
+                fmu.set_state(fmu.deserialize(data))
+                for i in range(10, 15):
+                    fmu.do_step(i * step, step)
+                check("serialized FMU state", fmu.get(*names) == expected,
+                      f"{len(data)} bytes restore and continue bit-identically")
+            fmu.free_state(state)
+        check("reset", fmu.call("fmi2Reset") == OK, "fmi2Reset returns the instance to its start values")
+    if md.modelExchange is not None:
+        with FmuInstance(path, kind="ME") as fmu:
+            fmu.initialize()
+            n = md.numberOfContinuousStates
+            derivatives = (ctypes.c_double * max(n, 1))()
+            status = fmu.call("fmi2EnterContinuousTimeMode")
+            status = max(status, fmu.call("fmi2GetDerivatives", derivatives, n))
+            finite = all(math.isfinite(v) for v in derivatives[:n])
+            check("Model Exchange", status == OK and finite, f"{n} state derivatives, status {status}")
+    return checks
+
+
+def _physics_checks(path: Path, name: str) -> list[Check]:
+    from harness.lagrange import derived_model, random_point
+    checks = []
+    names, reference, positions, q, qd = derived_model(name)
+    rng = np.random.default_rng(7)
+    worst = 0.0
+    with FmuInstance(path, kind="ME") as fmu:
+        n = 2 * len(q)
+        derivatives = (ctypes.c_double * n)()
+        for _ in range(20):
+            point = random_point(name, rng)
+            fmu.call("fmi2Reset")
+            fmu.initialize(**point)
+            fmu.call("fmi2GetDerivatives", derivatives, n)
+            expected = np.array(reference(*[point[k] for k in names])[:len(q)])
+            worst = max(worst, float(np.max(np.abs(np.array(derivatives[len(q):]) - expected)
+                                            / (1 + np.abs(expected)))))
+    checks.append(Check(path.name, "right-hand side = Euler-Lagrange (SymPy)", worst < 1e-10,
+                        f"largest relative deviation {worst:.1e} at 20 random states, parameters and forces"))
+    if name == "SimplePendulum":
+        for solver, order, hs in (("rk4", 4, [0.08, 0.04, 0.02, 0.01]), ("ab4", 4, [0.04, 0.02, 0.01, 0.005]),
+                                  ("heun", 2, [0.02, 0.01, 0.005, 0.0025])):
+            errors = []
+            for h in hs:
+                with FmuInstance(path) as fmu:
+                    fmu.initialize(solver=solver, h=h)
+                    fmu.do_step(0.0, 2.0)
+                    phi, omega = fmu.get("phi", "omega")
+                exact_phi, exact_omega = exact_simple_pendulum(0.5, 2.0)
+                errors.append(max(abs(phi - exact_phi), abs(omega - exact_omega) / math.sqrt(9.81)))
+            measured = slope(hs, errors)
+            checks.append(Check(path.name, f"order of {solver}", abs(measured - order) <= 0.3,
+                                f"{measured:.2f} against the exact elliptic solution (theory {order})"))
+    else:
+        hs, drifts = [0.008, 0.004, 0.002], []
+        for h in hs:
+            with FmuInstance(path) as fmu:
+                fmu.initialize(solver="rk4", h=h)
+                energies = []
+                for i in range(20):
+                    fmu.do_step(i * 0.1, 0.1)
+                    energies.append(fmu.get("E")[0])
+                drifts.append(max(abs(e - energies[0]) for e in energies) + 1e-300)
+        measured = slope(hs, drifts)
+        checks.append(Check(path.name, "energy conservation of rk4", measured >= 3.7,
+                            f"drift over 2 s falls with h^{measured:.2f} (theory 4), {drifts[-1]:.1e} J at h = 0.002"))
+    return checks
+
+
+def validate(path: str | Path) -> list[Check]:
+    path = Path(path)
+    if not path.is_file():
+        raise HarnessError(f"{path}: no such FMU file")
+    checks = _model_description_checks(path)
+    if not checks[0].passed and "modelDescription.xml" in checks[0].detail:
+        return checks
+    try:
+        checks += _runtime_checks(path)
+        model = FmuInstance(path).model_description.modelName
+        if model in PENDULUMS:
+            checks += _physics_checks(path, model)
+    except HarnessError as error:
+        checks.append(Check(path.name, "runtime", False, str(error)))
+    return checks
