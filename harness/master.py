@@ -170,6 +170,7 @@ class Master:
                 ins.append(k)
             self.routes.append([(by_name[s], np.array(o), np.array(i)) for s, (o, i) in grouped.items()])
         self.iterations = self.unconverged = self.macro_steps = 0
+        self.use_native = True  # the C loop for plain fixed-step runs, when it is built
         self.h_proposal: float | None = None
 
     @staticmethod
@@ -404,6 +405,20 @@ class Master:
             if on_row is not None:
                 on_row(table[rows])
 
+        fast = self._native_runner(table, energy) if self._native_eligible() else None
+        if fast is not None:
+            rows, status, culprit_index = fast(grid, on_row)
+            self.macro_steps = rows - 1
+            if status >= ERROR:
+                culprit = self.units[culprit_index]
+                raise HarnessError(f"{culprit.name}: an fmi2 call returned {STATUS_NAMES[status]} near "
+                                   f"t = {grid[rows - 1]:g}: {culprit.instance.last_message()}")
+            if status != OK:
+                culprit = self.units[culprit_index]
+                stopped_at = culprit.instance.last_successful_time() if status == DISCARD else grid[rows - 1]
+                message = f"{culprit.name} could not complete the step from t = {grid[rows - 1]:g}: " \
+                          f"{culprit.instance.last_message()}"
+            grid = grid[:0]  # done: skip the Python loop
         for k, t in enumerate(grid):
             record(t)
             rows += 1
@@ -413,7 +428,7 @@ class Master:
                 status, culprit, extra = self._advance_adaptive(t, grid[k + 1])
             else:
                 status, culprit, extra = self._advance(t, grid[k + 1] - t)
-                self.macro_steps += 1
+                self.macro_steps += status == OK
             retries += extra
             if status == ERROR:
                 stopped_at = t
@@ -432,6 +447,72 @@ class Master:
         messages = [f"{u.name}: {m}" for u in self.units for m in u.instance.log.messages]
         return CoSimulationResult(columns, table[:rows], energy[:rows], stopped_at, message, self.macro_steps,
                                   retries, messages, self.iterations, self.unconverged)
+
+    def _native_eligible(self) -> bool:
+        o = self.options
+        return o.iterate_tol is None and o.tolerance is None and o.on_discard == "stop" and self.use_native
+
+    def _native_runner(self, table: np.ndarray, energy: np.ndarray):
+        """The C loop over the same buffers and fmi2 functions, run in chunks so that progress is shown
+        and rows reach the caller as they come; None when the core is not built."""
+        from harness.native_core import CoreUnit, load_core
+        core = load_core()
+        if core is None:
+            return None
+        index = {unit.name: k for k, unit in enumerate(self.units)}
+        structs = (CoreUnit * len(self.units))()
+        keep = []  # arrays the structs point into
+        address = lambda f: ctypes.cast(f, ctypes.c_void_p).value  # noqa: E731
+        double_p, int_p = ctypes.POINTER(ctypes.c_double), ctypes.POINTER(ctypes.c_int)
+        for struct, unit in zip(structs, self.units):
+            lib = unit.instance.fmu.dll
+            sources = np.array([index[c.source] for c in unit.inputs] or [0], dtype=np.intc)
+            positions = np.array([self.units[index[c.source]].real_outputs.index(c.output) for c in unit.inputs]
+                                 or [0], dtype=np.intc)
+            keep += [sources, positions]
+            struct.component = unit.component.value
+            struct.set_real, struct.get_real = address(lib.fmi2SetReal), address(lib.fmi2GetReal)
+            struct.get_integer, struct.do_step = address(lib.fmi2GetInteger), address(lib.fmi2DoStep)
+            struct.set_derivatives = address(lib.fmi2SetRealInputDerivatives)
+            struct.get_derivatives = address(lib.fmi2GetRealOutputDerivatives)
+            struct.n_out, struct.n_in, struct.n_int = unit.n_out, unit.n_in, unit.n_int
+            struct.out_vrs, struct.in_vrs, struct.int_vrs = unit.out_vrs, unit.in_vrs, unit.int_vrs
+            struct.orders_out, struct.orders_in = unit.orders_out, unit.orders_in
+            struct.y_now = unit.y_now.ctypes.data_as(double_p)
+            struct.dy_now = unit.dy_now.ctypes.data_as(double_p)
+            struct.y_next, struct.dy_next = unit.y_next, unit.dy_next
+            struct.u, struct.du, struct.ints = unit.u, unit.du, unit.ints
+            struct.source_unit = sources.ctypes.data_as(int_p)
+            struct.source_index = positions.ctypes.data_as(int_p)
+            struct.energy_index = -1 if unit.energy_index is None else unit.energy_index
+        stepped = (ctypes.c_int * len(self.units))()
+        gauss_seidel = int(self.options.algorithm == "gauss-seidel")
+        linear = int(self.options.extrapolation == "linear")
+        rows_done, culprit = ctypes.c_long(), ctypes.c_int()
+
+        def run(grid: np.ndarray, on_row) -> tuple[int, int, int]:
+            chunk, first, last_report = 20000, 0, time.monotonic()
+            while True:
+                end = min(first + chunk, len(grid) - 1)
+                part = np.ascontiguousarray(grid[first:end + 1])
+                status = core.cosim_run(structs, len(self.units), part.ctypes.data_as(double_p), len(part),
+                                        gauss_seidel, linear, table[first:].ctypes.data_as(double_p),
+                                        table.shape[1], energy[first:].ctypes.data_as(double_p), stepped,
+                                        ctypes.byref(rows_done), ctypes.byref(culprit))
+                rows = first + rows_done.value
+                if on_row is not None:
+                    for row in table[first + (1 if first else 0):rows]:
+                        on_row(row)
+                if status != OK or end == len(grid) - 1:
+                    return rows, DISCARD if status == DISCARD else status, culprit.value
+                first = end
+                if self.options.progress and time.monotonic() - last_report > 2.0:
+                    last_report = time.monotonic()
+                    print(f"  t = {grid[first]:.4g} of {self.options.stop:g} s "
+                          f"({100 * first / (len(grid) - 1):.0f}%)", file=sys.stderr)
+
+        self._keep_alive = (structs, keep, stepped)
+        return run
 
     def free(self) -> None:
         for unit in self.units:

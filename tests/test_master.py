@@ -151,3 +151,31 @@ def test_bad_master_options_are_refused():
     for kwargs in ({"algorithm": "newton"}, {"extrapolation": "cubic"}, {"tolerance": -1.0}, {"iterate_tol": 0.0}):
         with pytest.raises(HarnessError):
             MasterOptions(stop=1.0, step=0.1, **kwargs)
+
+
+@pytest.mark.parametrize("algorithm", ["jacobi", "gauss-seidel"])
+@pytest.mark.parametrize("extrapolation", ["hold", "linear"])
+def test_native_loop_is_bit_identical_to_the_python_loop(system, algorithm, extrapolation):
+    from harness.master import Master
+    results = []
+    for native in (True, False):
+        with Master(system, MasterOptions(stop=1.0, step=0.01, algorithm=algorithm,
+                                          extrapolation=extrapolation)) as master:
+            master.use_native = native
+            results.append(master.run())
+    assert np.array_equal(results[0].values, results[1].values)
+    assert np.array_equal(results[0].energy, results[1].energy)
+
+
+def test_native_loop_reports_a_discard_like_the_python_loop(system):
+    from harness.master import Master
+    changes = {"spring": {"k": 4000.0}, "left": {"solver": "euler", "h": 0.05}, "right": {"solver": "euler", "h": 0.05}}
+    stiff = dataclasses.replace(system, components=[dataclasses.replace(c, start={**c.start, **changes[c.name]})
+                                                    for c in system.components])
+    outcomes = []
+    for native in (True, False):
+        with Master(stiff, MasterOptions(stop=2.0, step=0.05)) as master:
+            master.use_native = native
+            result = master.run()
+            outcomes.append((result.stopped_at, result.message, result.values.shape, result.macro_steps))
+    assert outcomes[0] == outcomes[1] and outcomes[0][0] is not None

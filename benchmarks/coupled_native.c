@@ -1,0 +1,125 @@
+/* The coupled-pendulums scene (spring, left, right; Jacobi, inputs held) as a plain C loop of fmi2
+ * calls: the floor any master in any language can reach with these FMUs.
+ *
+ *   coupled_native PENDULUM.so PENDULUM_GUID SPRING.so SPRING_GUID STEPS H VR...
+ *
+ * VR: the value references (from the model descriptions) of, in this order:
+ *   pendulum x y v_x v_y F_x F_y phi anchor_x h, spring a_x a_y a_vx a_vy b_x b_y b_vx b_vy Fa_x Fa_y Fb_x Fb_y k l0
+ * Prints the seconds per macro step and the left bob's final x. */
+#define _POSIX_C_SOURCE 200809L
+#include <dlfcn.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <time.h>
+
+#include "fmi2_api.h"
+
+typedef struct {
+    fmi2Component c;
+    fmi2Status (*set_real)(fmi2Component, const fmi2ValueReference[], size_t, const fmi2Real[]);
+    fmi2Status (*get_real)(fmi2Component, const fmi2ValueReference[], size_t, fmi2Real[]);
+    fmi2Status (*do_step)(fmi2Component, fmi2Real, fmi2Real, fmi2Boolean);
+} Unit;
+
+static void logger(fmi2ComponentEnvironment e, fmi2String n, fmi2Status s, fmi2String c, fmi2String m, ...)
+{
+    (void)e, (void)s, (void)c;
+    fprintf(stderr, "%s: %s\n", n, m);
+}
+
+static Unit open_unit(const char *path, const char *guid, const char *name)
+{
+    static const fmi2CallbackFunctions callbacks = {logger, calloc, free, NULL, NULL};
+    Unit u;
+    void *lib = dlopen(path, RTLD_NOW | RTLD_LOCAL);
+    fmi2Component (*instantiate)(fmi2String, fmi2Type, fmi2String, fmi2String, const fmi2CallbackFunctions *,
+                                 fmi2Boolean, fmi2Boolean);
+    if (!lib) {
+        fprintf(stderr, "%s\n", dlerror());
+        exit(2);
+    }
+    *(void **)&instantiate = dlsym(lib, "fmi2Instantiate");
+    *(void **)&u.set_real = dlsym(lib, "fmi2SetReal");
+    *(void **)&u.get_real = dlsym(lib, "fmi2GetReal");
+    *(void **)&u.do_step = dlsym(lib, "fmi2DoStep");
+    u.c = instantiate(name, fmi2CoSimulation, guid, "", &callbacks, fmi2False, fmi2False);
+    if (!u.c) exit(2);
+    return u;
+}
+
+static void initialize(const char *path, fmi2Component c)
+{
+    void *lib = dlopen(path, RTLD_NOW | RTLD_LOCAL | RTLD_NOLOAD);
+    fmi2Status (*enter)(fmi2Component), (*leave)(fmi2Component);
+    *(void **)&enter = dlsym(lib, "fmi2EnterInitializationMode");
+    *(void **)&leave = dlsym(lib, "fmi2ExitInitializationMode");
+    if (enter(c) || leave(c)) exit(2);
+}
+
+int main(int argc, char **argv)
+{
+    Unit left, right, spring;
+    fmi2ValueReference p_out[4], p_in[2], p_phi, p_anchor, p_h, s_in[8], s_out[4], s_k, s_l0;
+    double left_out[4], right_out[4], spring_in[8], spring_out[4], force[2], value;
+    long steps, k;
+    double H, t0, t1;
+    struct timespec ts;
+    int i;
+    if (argc != 7 + 9 + 14) {
+        fprintf(stderr, "usage: see the comment at the top of coupled_native.c\n");
+        return 2;
+    }
+    steps = atol(argv[5]);
+    H = atof(argv[6]);
+    for (i = 0; i < 4; i++) p_out[i] = (fmi2ValueReference)atoi(argv[7 + i]);
+    for (i = 0; i < 2; i++) p_in[i] = (fmi2ValueReference)atoi(argv[11 + i]);
+    p_phi = (fmi2ValueReference)atoi(argv[13]);
+    p_anchor = (fmi2ValueReference)atoi(argv[14]);
+    p_h = (fmi2ValueReference)atoi(argv[15]);
+    for (i = 0; i < 8; i++) s_in[i] = (fmi2ValueReference)atoi(argv[16 + i]);
+    for (i = 0; i < 4; i++) s_out[i] = (fmi2ValueReference)atoi(argv[24 + i]);
+    s_k = (fmi2ValueReference)atoi(argv[28]);
+    s_l0 = (fmi2ValueReference)atoi(argv[29]);
+
+    spring = open_unit(argv[3], argv[4], "spring");
+    left = open_unit(argv[1], argv[2], "left");
+    right = open_unit(argv[1], argv[2], "right");
+    value = 0.5; left.set_real(left.c, &p_phi, 1, &value);
+    value = 0.0; right.set_real(right.c, &p_phi, 1, &value);
+    value = 1.5; right.set_real(right.c, &p_anchor, 1, &value);
+    value = 0.001; left.set_real(left.c, &p_h, 1, &value); right.set_real(right.c, &p_h, 1, &value);
+    value = 10.0; spring.set_real(spring.c, &s_k, 1, &value);
+    value = 1.5; spring.set_real(spring.c, &s_l0, 1, &value);
+    initialize(argv[3], spring.c);
+    initialize(argv[1], left.c);
+    initialize(argv[1], right.c);
+    left.get_real(left.c, p_out, 4, left_out);
+    right.get_real(right.c, p_out, 4, right_out);
+    spring.get_real(spring.c, s_out, 4, spring_out);
+
+    clock_gettime(CLOCK_MONOTONIC, &ts);
+    t0 = ts.tv_sec + 1e-9 * ts.tv_nsec;
+    for (k = 0; k < steps; k++) {
+        const double t = k * H;
+        for (i = 0; i < 4; i++) {
+            spring_in[i] = left_out[i];
+            spring_in[4 + i] = right_out[i];
+        }
+        spring.set_real(spring.c, s_in, 8, spring_in);
+        left.set_real(left.c, p_in, 2, spring_out);
+        force[0] = spring_out[2];
+        force[1] = spring_out[3];
+        right.set_real(right.c, p_in, 2, force);
+        if (spring.do_step(spring.c, t, H, 1) || left.do_step(left.c, t, H, 1) || right.do_step(right.c, t, H, 1)) {
+            fprintf(stderr, "fmi2DoStep failed at t = %g\n", t);
+            return 1;
+        }
+        spring.get_real(spring.c, s_out, 4, spring_out);
+        left.get_real(left.c, p_out, 4, left_out);
+        right.get_real(right.c, p_out, 4, right_out);
+    }
+    clock_gettime(CLOCK_MONOTONIC, &ts);
+    t1 = ts.tv_sec + 1e-9 * ts.tv_nsec;
+    printf("%.9g %.17g\n", (t1 - t0) / steps, left_out[0]);
+    return 0;
+}
