@@ -88,7 +88,9 @@ def command_run(args: argparse.Namespace) -> int:
         master_columns = ["time"] + [f"{u.name}.{n}" for u in master.units for n in u.real_outputs] + \
                          [f"{u.name}.{n}" for u in master.units for n in u.integer_outputs]
         result = master.run(on_row=write_row)
-    print(f"wrote {out}: {result.macro_steps} macro steps of {step:g} s, {args.algorithm}, {args.extrapolation} "
+    steps = (f"{result.macro_steps} macro steps chosen by step doubling (rows every {step:g} s)" if args.tolerance
+             else f"{result.macro_steps} macro steps of {step:g} s")
+    print(f"wrote {out}: {steps}, {args.algorithm}, {args.extrapolation} "
           f"extrapolation; energy residual {result.energy_residual:.3e} J"
           + (f", {result.retries} retried steps" if result.retries else "")
           + (f", {result.iterations} iteration passes ({result.unconverged} unconverged)" if args.iterate else ""))

@@ -143,6 +143,21 @@ def _bound_values(element) -> dict[str, str]:
     return values
 
 
+def _default_stop_time(archive) -> float | None:
+    """stopTime of the SSD's DefaultExperiment (fmpy's reader does not keep it)."""
+    import xml.etree.ElementTree as ET
+    if hasattr(archive, "seek"):
+        archive.seek(0)
+    with zipfile.ZipFile(archive) as zipped:
+        root = ET.fromstring(zipped.read("SystemStructure.ssd"))
+    if hasattr(archive, "seek"):
+        archive.seek(0)
+    for element in root:
+        if element.tag.endswith("}DefaultExperiment") and element.get("stopTime") is not None:
+            return float(element.get("stopTime"))
+    return None
+
+
 def load_ssp(path: Path) -> System:
     from fmpy.ssp.ssd import Component as SspComponent, read_ssd
     archive, root = _ssp_archive(path)
@@ -164,7 +179,8 @@ def load_ssp(path: Path) -> System:
         components.append(Component(element.name, fmu, start))
     connections = [Connection(c.startElement, c.startConnector, c.endElement, c.endConnector)
                    for c in system.connections]
-    stop = step = None
+    stop = _default_stop_time(archive)
+    step = None
     info = getattr(system, "simulationInformation", None)
     if info is not None and getattr(info, "fixedStepMaster", None) is not None:
         step = float(info.fixedStepMaster.stepSize)
