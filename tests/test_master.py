@@ -179,3 +179,28 @@ def test_native_loop_reports_a_discard_like_the_python_loop(system):
             result = master.run()
             outcomes.append((result.stopped_at, result.message, result.values.shape, result.macro_steps))
     assert outcomes[0] == outcomes[1] and outcomes[0][0] is not None
+
+
+def test_ssp_parameter_values_from_an_ssv_file(fmu_paths, tmp_path):
+    """A binding that references an .ssv file (SSP 1.0 ParameterBinding source) sets start values."""
+    import shutil
+    folder = tmp_path / "ssp"
+    shutil.copytree(build_dir() / "scenes" / "coupled_pendulums", folder)
+    ssd = (folder / "SystemStructure.ssd").read_text()
+    start = ssd.index('<ssd:Component name="spring"')
+    block_start = ssd.index("<ssd:ParameterBindings>", start)
+    block_end = ssd.index("</ssd:ParameterBindings>", start) + len("</ssd:ParameterBindings>")
+    ssd = ssd[:block_start] + ('<ssd:ParameterBindings><ssd:ParameterBinding source="resources/spring.ssv"/>'
+                               '</ssd:ParameterBindings>') + ssd[block_end:]
+    (folder / "SystemStructure.ssd").write_text(ssd)
+    (folder / "resources" / "spring.ssv").write_text(
+        '<?xml version="1.0" encoding="UTF-8"?>\n'
+        '<ssv:ParameterSet xmlns:ssv="http://ssp-standard.org/SSP1/SystemStructureParameterValues" '
+        'version="1.0" name="spring"><ssv:Parameters>'
+        '<ssv:Parameter name="k"><ssv:Real value="25"/></ssv:Parameter>'
+        '<ssv:Parameter name="l0"><ssv:Real value="1.5"/></ssv:Parameter>'
+        '</ssv:Parameters></ssv:ParameterSet>\n')
+    system = load_system(folder)
+    assert system.component("spring").start == {"k": 25.0, "l0": 1.5}
+    result = run_system(system, MasterOptions(stop=0.1, step=0.05))
+    assert result.stopped_at is None
