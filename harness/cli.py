@@ -163,7 +163,8 @@ def main(argv: list[str] | None = None) -> int:
     try:
         return args.run(args)
     except HarnessError as error:
-        print(f"harness: error: {error}", file=sys.stderr)
+        lines = str(error).strip().splitlines() or ["(no detail)"]
+        print(f"harness: error: {lines[0]}" + (" [...]" if len(lines) > 1 else ""), file=sys.stderr)
         return 2
     except KeyboardInterrupt:
         print("harness: interrupted", file=sys.stderr)

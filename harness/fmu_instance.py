@@ -52,26 +52,63 @@ class LogCollector:
         self.callbacks.freeMemory = fmi2CallbackFreeMemoryTYPE(free)
 
 
+def _first_line(error: Exception) -> str:
+    lines = str(error).strip().splitlines()
+    return lines[0] if lines else type(error).__name__
+
+
+def read_fmi2_description(path: Path):
+    """fmpy's model description of an FMI 2.0 FMU; a one-line HarnessError for anything else."""
+    import zipfile
+    import xml.etree.ElementTree as ET
+    if not path.is_file():
+        raise HarnessError(f"{path}: no such FMU file")
+    try:
+        with zipfile.ZipFile(path) as archive:
+            version = ET.fromstring(archive.read("modelDescription.xml")).get("fmiVersion")
+    except zipfile.BadZipFile:
+        raise HarnessError(f"{path}: not an FMU (not a zip archive)") from None
+    except KeyError:
+        raise HarnessError(f"{path}: not an FMU (no modelDescription.xml)") from None
+    except ET.ParseError as error:
+        raise HarnessError(f"{path}: modelDescription.xml is not well-formed XML ({error})") from None
+    if version != "2.0":
+        raise HarnessError(f"{path}: an FMI {version} FMU; this harness runs FMI 2.0 FMUs")
+    try:
+        return read_model_description(str(path))
+    except Exception as error:  # fmpy raises plain exceptions for invalid files
+        raise HarnessError(f"{path}: invalid modelDescription.xml ({_first_line(error)})") from None
+
+
 class FmuInstance:
     """An instantiated FMU (Co-Simulation by default, Model Exchange with kind="ME")."""
 
     def __init__(self, fmu: str | Path, kind: str = "CS", name: str = "instance", logging_on: bool = False,
                  unzipdir: str | None = None):
         self.path = Path(fmu)
-        try:
-            self.model_description = read_model_description(str(self.path))
-        except Exception as error:  # fmpy raises plain exceptions for unreadable files
-            raise HarnessError(f"{self.path}: cannot read the FMU ({error})") from None
+        self.fmu = None
+        self.model_description = read_fmi2_description(self.path)
         self.unzipdir = unzipdir or extract(str(self.path))
         self.variables = {v.name: v for v in self.model_description.modelVariables}
         self.log = LogCollector()
         interface = self.model_description.coSimulation if kind == "CS" else self.model_description.modelExchange
         if interface is None:
             raise HarnessError(f"{self.path}: the FMU does not support {kind}")
+        library = Path(self.unzipdir) / "binaries" / "linux64" / f"{interface.modelIdentifier}.so"
+        if not library.is_file():
+            raise HarnessError(f"{self.path}: no binary for this platform (binaries/linux64/{library.name} is missing)")
         cls = FMU2Slave if kind == "CS" else FMU2Model
-        self.fmu = cls(guid=self.model_description.guid, unzipDirectory=self.unzipdir,
-                       modelIdentifier=interface.modelIdentifier, instanceName=name)
-        self.fmu.instantiate(callbacks=self.log.callbacks, loggingOn=logging_on)
+        try:
+            fmu = cls(guid=self.model_description.guid, unzipDirectory=self.unzipdir,
+                      modelIdentifier=interface.modelIdentifier, instanceName=name)
+        except Exception as error:  # fmpy raises plain exceptions when the binary cannot be loaded
+            raise HarnessError(f"{self.path}: cannot load {library.name} ({_first_line(error)})") from None
+        try:
+            fmu.instantiate(callbacks=self.log.callbacks, loggingOn=logging_on)
+        except Exception:
+            fmu.freeLibrary()
+            raise HarnessError(f"{self.path}: fmi2Instantiate failed: {self.last_message()}") from None
+        self.fmu = fmu
         self.kind = kind
 
     # ---- variables by name

@@ -10,7 +10,7 @@ from pathlib import Path
 import numpy as np
 
 from harness.errors import HarnessError
-from harness.fmu_instance import ERROR, OK, FmuInstance
+from harness.fmu_instance import ERROR, OK, FmuInstance, read_fmi2_description
 from harness.reference import exact_simple_pendulum, slope
 
 PENDULUMS = ("SimplePendulum", "DoublePendulum", "SpringPendulum")
@@ -29,6 +29,10 @@ class Check:
 
 def _model_description_checks(path: Path) -> list[Check]:
     from fmpy.validation import validate_fmu
+    try:
+        read_fmi2_description(path)
+    except HarnessError as error:
+        return [Check(path.name, "modelDescription (fmpy)", False, str(error))]
     problems = validate_fmu(str(path))
     detail = "no problems" if not problems else "; ".join(problems[:5]) + (" ..." if len(problems) > 5 else "")
     return [Check(path.name, "modelDescription (fmpy)", not problems, detail)]
@@ -43,7 +47,7 @@ def _finite_outputs(instance: FmuInstance) -> tuple[bool, str]:
 
 def _runtime_checks(path: Path) -> list[Check]:
     checks = []
-    md = FmuInstance(path).model_description  # read once; instances below are short-lived
+    md = read_fmi2_description(path)
     step = md.defaultExperiment.stepSize if md.defaultExperiment and md.defaultExperiment.stepSize else 0.01
     step = float(step)
 
@@ -145,11 +149,11 @@ def validate(path: str | Path) -> list[Check]:
     if not path.is_file():
         raise HarnessError(f"{path}: no such FMU file")
     checks = _model_description_checks(path)
-    if not checks[0].passed and "modelDescription.xml" in checks[0].detail:
+    if not checks[0].passed:
         return checks
     try:
         checks += _runtime_checks(path)
-        model = FmuInstance(path).model_description.modelName
+        model = read_fmi2_description(path).modelName
         if model in PENDULUMS:
             checks += _physics_checks(path, model)
     except HarnessError as error:
