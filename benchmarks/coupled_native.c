@@ -16,6 +16,7 @@
 
 typedef struct {
     fmi2Component c;
+    void (*free_instance)(fmi2Component);
     fmi2Status (*set_real)(fmi2Component, const fmi2ValueReference[], size_t, const fmi2Real[]);
     fmi2Status (*get_real)(fmi2Component, const fmi2ValueReference[], size_t, fmi2Real[]);
     fmi2Status (*do_step)(fmi2Component, fmi2Real, fmi2Real, fmi2Boolean);
@@ -42,6 +43,7 @@ static Unit open_unit(const char *path, const char *guid, const char *name)
     *(void **)&u.set_real = dlsym(lib, "fmi2SetReal");
     *(void **)&u.get_real = dlsym(lib, "fmi2GetReal");
     *(void **)&u.do_step = dlsym(lib, "fmi2DoStep");
+    *(void **)&u.free_instance = dlsym(lib, "fmi2FreeInstance");
     u.c = instantiate(name, fmi2CoSimulation, guid, "", &callbacks, fmi2False, fmi2False);
     if (!u.c) exit(2);
     return u;
@@ -121,5 +123,8 @@ int main(int argc, char **argv)
     clock_gettime(CLOCK_MONOTONIC, &ts);
     t1 = ts.tv_sec + 1e-9 * ts.tv_nsec;
     printf("%.9g %.17g\n", (t1 - t0) / steps, left_out[0]);
+    spring.free_instance(spring.c);
+    left.free_instance(left.c);
+    right.free_instance(right.c);
     return 0;
 }

@@ -1,0 +1,76 @@
+"""Memory safety of the FMUs: the behaviour, robustness, numerics and master tests again against an
+AddressSanitizer + UndefinedBehaviorSanitizer build (CMake option FMU_SANITIZE), and the C drivers
+under valgrind memcheck. Any report fails the test."""
+from __future__ import annotations
+
+import os
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+from fmpy import read_model_description
+
+from harness.fmus import PROJECT_ROOT, build_dir
+
+SANITIZED_TESTS = ["tests/test_fmi_behaviour.py", "tests/test_robustness.py", "tests/test_convergence.py",
+                   "tests/test_master.py", "tests/test_concurrency.py", "tests/test_physics.py"]
+
+
+def compiler_file(name: str) -> str:
+    return subprocess.run(["gcc", f"-print-file-name={name}"], capture_output=True, text=True, check=True).stdout.strip()
+
+
+@pytest.fixture(scope="module")
+def sanitized_build(tmp_path_factory) -> Path:
+    directory = PROJECT_ROOT / "build-sanitize"
+    for command in (["cmake", "-S", str(PROJECT_ROOT), "-B", str(directory), "-DCMAKE_BUILD_TYPE=Debug",
+                     "-DFMU_SANITIZE=ON"], ["cmake", "--build", str(directory), "-j2"]):
+        result = subprocess.run(command, capture_output=True, text=True)
+        assert result.returncode == 0, result.stdout[-3000:] + result.stderr[-3000:]
+    return directory
+
+
+def test_suite_runs_clean_under_address_and_undefined_behaviour_sanitizers(sanitized_build):
+    asan, ubsan = compiler_file("libasan.so"), compiler_file("libubsan.so")
+    if not Path(asan).is_file() or not Path(ubsan).is_file():
+        pytest.skip("gcc's sanitizer runtimes are not installed")
+    environment = dict(os.environ, PENDULUM_BUILD_DIR=str(sanitized_build), PENDULUM_SKIP_BUILD="1",
+                       LD_PRELOAD=f"{asan} {ubsan}", ASAN_OPTIONS="detect_leaks=0:abort_on_error=1",
+                       UBSAN_OPTIONS="halt_on_error=1:print_stacktrace=1")
+    result = subprocess.run([sys.executable, "-m", "pytest", "-q", "-p", "no:cacheprovider", "-x",
+                             "-k", "not no_mutable_static_data", *SANITIZED_TESTS],
+                            cwd=PROJECT_ROOT, env=environment, capture_output=True, text=True, timeout=1200)
+    report = result.stdout[-4000:] + result.stderr[-4000:]
+    assert result.returncode == 0, report
+    assert "AddressSanitizer" not in result.stderr and "runtime error" not in result.stderr, report
+
+
+def memcheck(command: list[str]) -> None:
+    result = subprocess.run(["valgrind", "--error-exitcode=99", "--leak-check=full", "--errors-for-leak-kinds=definite",
+                             "-q", *command], capture_output=True, text=True, timeout=600)
+    assert result.returncode == 0, result.stderr[-4000:]
+
+
+@pytest.mark.skipif(shutil.which("valgrind") is None, reason="valgrind is not installed")
+@pytest.mark.parametrize("model", ["SimplePendulum", "DoublePendulum", "SpringPendulum"])
+def test_fmu_runs_clean_under_valgrind_memcheck(fmu_paths, model):
+    """Instantiate, initialize, 2000 RK4 steps in fmi2DoStep, get outputs, free: no invalid access, no leak."""
+    memcheck([str(build_dir() / "bin" / f"bench_{model}"), str(build_dir() / "lib" / model / f"{model}.so"),
+              "fmu", "2000"])
+
+
+@pytest.mark.skipif(shutil.which("valgrind") is None, reason="valgrind is not installed")
+def test_coupled_loop_runs_clean_under_valgrind_memcheck(fmu_paths):
+    """Three instances of two FMUs exchanging values over 500 macro steps."""
+    pendulum = read_model_description(str(fmu_paths["SimplePendulum"]))
+    spring = read_model_description(str(fmu_paths["Spring"]))
+    p = {v.name: v.valueReference for v in pendulum.modelVariables}
+    s = {v.name: v.valueReference for v in spring.modelVariables}
+    vrs = [p[n] for n in ("x", "y", "v_x", "v_y", "F_x", "F_y", "phi", "anchor_x", "h")] + \
+          [s[n] for n in ("a_x", "a_y", "a_vx", "a_vy", "b_x", "b_y", "b_vx", "b_vy", "Fa_x", "Fa_y", "Fb_x", "Fb_y",
+                          "k", "l0")]
+    memcheck([str(build_dir() / "bin" / "coupled_native"),
+              str(build_dir() / "lib" / "SimplePendulum" / "SimplePendulum.so"), pendulum.guid,
+              str(build_dir() / "lib" / "Spring" / "Spring.so"), spring.guid, "500", "0.01"] + [str(v) for v in vrs])
