@@ -1,0 +1,81 @@
+"""Independent checkers from the package registries: VDMCheck2 (Maven Central) and
+fmu-manipulation-toolbox's `fmutool -check` (PyPI) report no error for any of our FMUs, and do
+report the error in a deliberately broken copy (so the checks can fail)."""
+from __future__ import annotations
+
+import shutil
+import subprocess
+import sys
+import zipfile
+from pathlib import Path
+
+import pytest
+
+from harness.fmus import FMU_NAMES, build_dir
+
+VDMCHECK = "org.into-cps.vdmcheck.fmi2:vdmcheck2:1.1.3:zip:distribution-static"
+
+
+@pytest.fixture(scope="module")
+def broken_fmu(fmu_paths, tmp_path_factory) -> Path:
+    """The Spring with one output missing from ModelStructure/Outputs."""
+    target = tmp_path_factory.mktemp("broken") / "Spring.fmu"
+    with zipfile.ZipFile(fmu_paths["Spring"]) as source, zipfile.ZipFile(target, "w") as copy:
+        for item in source.infolist():
+            data = source.read(item)
+            if item.filename == "modelDescription.xml":
+                data = data.replace(b'<Unknown index="16"/>', b"", 1)
+            copy.writestr(item, data)
+    return target
+
+
+@pytest.fixture(scope="module")
+def vdmcheck() -> Path:
+    if shutil.which("mvn") is None or shutil.which("java") is None:
+        pytest.skip("VDMCheck2 needs Maven and Java")
+    tools = build_dir() / "tools"
+    script = tools / "vdmcheck-1.1.3" / "VDMCheck2.sh"
+    if not script.is_file():
+        tools.mkdir(parents=True, exist_ok=True)
+        fetched = subprocess.run(["mvn", "-q", "dependency:copy", f"-Dartifact={VDMCHECK}",
+                                  f"-DoutputDirectory={tools}"], capture_output=True, text=True, timeout=600)
+        assert fetched.returncode == 0, fetched.stdout[-2000:] + fetched.stderr[-2000:]
+        with zipfile.ZipFile(tools / "vdmcheck2-1.1.3-distribution-static.zip") as archive:
+            archive.extractall(tools)
+    return script
+
+
+@pytest.mark.parametrize("name", FMU_NAMES)
+def test_vdmcheck2_finds_no_errors(vdmcheck, fmu_paths, name):
+    result = subprocess.run(["bash", str(vdmcheck), str(fmu_paths[name])], capture_output=True, text=True, timeout=300,
+                            cwd=vdmcheck.parent)  # its classpath is relative to its folder
+    assert "No errors found." in result.stdout, result.stdout[-3000:] + result.stderr[-2000:]
+
+
+def test_vdmcheck2_reports_a_broken_model_structure(vdmcheck, broken_fmu):
+    result = subprocess.run(["bash", str(vdmcheck), str(broken_fmu)], capture_output=True, text=True, timeout=300,
+                            cwd=vdmcheck.parent)
+    assert "No errors found." not in result.stdout and "Outputs section does not match" in result.stdout
+
+
+def fmutool(path: Path) -> subprocess.CompletedProcess:
+    executable = Path(sys.executable).parent / "fmutool"
+    if not executable.is_file():
+        pytest.skip("fmu-manipulation-toolbox is not installed")
+    return subprocess.run([str(executable), "-input", str(path), "-check"], capture_output=True, text=True,
+                          timeout=300)
+
+
+@pytest.mark.parametrize("name", FMU_NAMES)
+def test_fmutool_check_finds_no_errors(fmu_paths, name):
+    result = fmutool(fmu_paths[name])
+    output = result.stdout + result.stderr
+    assert result.returncode == 0, output
+    assert "compliant with FMI-2.0" in output and "No semantic error" in output, output
+    assert "ERROR" not in output
+
+
+def test_fmutool_check_reports_a_broken_model_structure(broken_fmu):
+    result = fmutool(broken_fmu)
+    output = result.stdout + result.stderr
+    assert "Output 'E_pot' is not listed in <Outputs>" in output and "No semantic error" not in output, output
