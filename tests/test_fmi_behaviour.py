@@ -394,3 +394,13 @@ def test_spring_outputs_never_overflow_silently(open_fmu):
     assert fmu.set(b_x=1e160) == OK
     assert fmu.do_step(0.0, 0.1) == DISCARD  # E_pot = k/2 (r - l0)^2 would overflow
     assert "non-finite outputs" in fmu.last_message() and fmu.last_successful_time() == 0.0
+
+
+def test_a_pass_through_the_anchor_within_one_step_is_caught(open_fmu):
+    """eps(t) = -0.5 cos(w t) - (5/w) sin(w t) reaches -1 (r = 0) near t = 0.21 and is back above -1
+    long before t = 1: the end of the step looks regular, the pass through the anchor is not."""
+    fmu = open_fmu("SpringPendulum")
+    fmu.initialize(solver="rk4", h=0.001, phi=0.0, eps=-0.5, v_eps=-5.0, g=0.0)
+    assert fmu.do_step(0.0, 1.0) == DISCARD
+    last = fmu.last_successful_time()
+    assert 0.1 < last < 0.25 and fmu.get("eps")[0] > -1.0

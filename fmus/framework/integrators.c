@@ -304,7 +304,9 @@ double integrate_adaptive(RightHandSide *f, IntegratorMemory *memory, double *x,
         } else {
             memory->n_rejected++;
             rejected_before = 1;
-            if (norm <= 1.0 && factor > 0.25) factor = 0.25; /* a singular or non-finite result */
+            /* Rejected for a singular or non-finite result (also a NaN error norm, which the formula
+             * above would turn into growth): cut hard, so that the step underflows if it persists. */
+            if (!(norm > 1.0)) factor = 0.25;
             h = step * factor;
             if (h < smallest) break;
         }

@@ -34,6 +34,12 @@ void model_derivatives(const ModelConst *c, const double *x, const double *u, do
 {
     const double phi = x[0], eps = x[1], omega = x[2], v = x[3];
     const double r = c->l0 + eps, s = sin(phi), co = cos(phi);
+    if (!(r > 0.0)) {
+        /* The mass at or through the anchor: the equations are undefined. NaN reaches the state, so the
+         * once-per-step check catches even a pass through r <= 0 that ends with r > 0 again. */
+        dx[0] = dx[1] = dx[2] = dx[3] = NAN;
+        return;
+    }
     dx[0] = omega;
     dx[1] = v;
     dx[2] = (-(c->g * s + 2.0 * v * omega) + (u[0] * co + u[1] * s) * c->inv_m) / r - c->d * omega;
