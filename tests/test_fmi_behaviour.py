@@ -404,3 +404,14 @@ def test_a_pass_through_the_anchor_within_one_step_is_caught(open_fmu):
     assert fmu.do_step(0.0, 1.0) == DISCARD
     last = fmu.last_successful_time()
     assert 0.1 < last < 0.25 and fmu.get("eps")[0] > -1.0
+
+
+def test_model_exchange_at_the_singularity_discards_without_nan(open_fmu):
+    fmu = open_fmu("SpringPendulum", kind="ME")
+    fmu.initialize()
+    assert fmu.call("fmi2EnterContinuousTimeMode") == OK
+    singular = (ctypes.c_double * 4)(0.3, -1.0, 0.0, 0.0)  # r = l0 + eps = 0
+    assert fmu.call("fmi2SetContinuousStates", singular, 4) == OK
+    derivatives = (ctypes.c_double * 4)(7.0, 7.0, 7.0, 7.0)
+    assert fmu.call("fmi2GetDerivatives", derivatives, 4) == DISCARD
+    assert all(math.isfinite(v) for v in derivatives)

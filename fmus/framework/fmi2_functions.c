@@ -535,7 +535,9 @@ fmi2Status fmi2GetReal(fmi2Component c, const fmi2ValueReference vr[], size_t nv
         if (!real_reference_known(inst, "fmi2GetReal", vr[i])) return fmi2Error;
     status = ensure_outputs(inst, "fmi2GetReal");
     if (status == fmi2Error) return status;
-    for (i = 0; i < nvr; i++) value[i] = inst->s.real[vr[i]];
+    /* With fmi2Discard, values that are not finite are not handed out: those entries stay as they were. */
+    for (i = 0; i < nvr; i++)
+        if (status == fmi2OK || isfinite(inst->s.real[vr[i]])) value[i] = inst->s.real[vr[i]];
     return status;
 }
 
@@ -965,7 +967,8 @@ fmi2Status fmi2GetDerivatives(fmi2Component c, fmi2Real derivatives[], size_t nx
     if (!inst || !state_count_matches(inst, "fmi2GetDerivatives", nx, N_STATES, derivatives)) return fmi2Error;
     status = ensure_outputs(inst, "fmi2GetDerivatives");
     if (status == fmi2Error) return status;
-    for (i = 0; i < nx; i++) derivatives[i] = inst->s.real[N_STATES + i];
+    for (i = 0; i < nx; i++)
+        if (status == fmi2OK || isfinite(inst->s.real[N_STATES + i])) derivatives[i] = inst->s.real[N_STATES + i];
     return status;
 }
 
