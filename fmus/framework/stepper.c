@@ -54,16 +54,16 @@ static fmi2Status finish(Instance *inst, double t, double H_done, double t_reach
     return fmi2OK;
 }
 
-/* A state to continue from: finite and regular, with finite derivatives and outputs. Costs a
- * right-hand side and the outputs, so it runs once per communication step, or per substep only
- * when redoing a failed step. */
-int state_acceptable(const void *context, const double *x)
+/* Fills real (a copy of the variables with the states x) with the derivatives and outputs at x;
+ * returns whether x is a state to continue from: finite and regular, with finite derivatives and
+ * outputs. Costs a right-hand side and the outputs, so it runs once per communication step, or per
+ * substep only when redoing a failed step. */
+static int evaluate_at(const Instance *inst, const double *x, double *real)
 {
-    const Instance *inst = (const Instance *)context;
-    double real[N_REAL], u[INPUT_SLOTS];
+    double u[INPUT_SLOTS];
     int i;
     if (!model_state_ok(&inst->constants, x)) return 0;
-    memcpy(real, inst->s.real, sizeof real);
+    memcpy(real, inst->s.real, N_REAL * sizeof(double));
     memcpy(real, x, N_STATES * sizeof(double));
     gather_inputs(inst, u);
     model_derivatives(&inst->constants, x, u, real + N_STATES);
@@ -71,6 +71,25 @@ int state_acceptable(const void *context, const double *x)
     for (i = 0; i < N_REAL; i++)
         if (!isfinite(real[i])) return 0;
     return 1;
+}
+
+int state_acceptable(const void *context, const double *x)
+{
+    double real[N_REAL];
+    return evaluate_at((const Instance *)context, x, real);
+}
+
+/* Ends a successful step. When the inputs did not vary, the outputs the end-of-step check computed
+ * are those of the new state and inputs: they become the cached outputs instead of being computed
+ * again when the master reads them. */
+static fmi2Status finish_with(Instance *inst, double t, double H, const double *checked, int inputs_vary)
+{
+    const fmi2Status status = finish(inst, t, H, t + H);
+    if (!inputs_vary) {
+        memcpy(inst->s.real, checked, N_REAL * sizeof(double));
+        inst->outputs_valid = 1;
+    }
+    return status;
 }
 
 static fmi2Status fail(Instance *inst, double t, double t_good, const char *method, double h)
@@ -90,6 +109,7 @@ fmi2Status step_to(Instance *inst, double t, double H)
     const char *method = solver_name(solver);
     double *x = s->real; /* the states lead the Real variables */
     RightHandSide f;
+    double checked[N_REAL];
     int i;
 
     f.model = &inst->constants;
@@ -109,10 +129,10 @@ fmi2Status step_to(Instance *inst, double t, double H)
         for (i = 0; i < N_INPUTS; i++) u_mid[i] = f.u0[i] + 0.5 * H * f.du[i];
         memcpy(closed, x, sizeof closed);
         if (model_closed_form_step(&inst->constants, H, u_mid, closed)) {
-            if (!state_acceptable(inst, closed)) return fail(inst, t, t, "closed form", H);
+            if (!evaluate_at(inst, closed, checked)) return fail(inst, t, t, "closed form", H);
             memcpy(x, closed, sizeof closed);
             memory->n_steps++;
-            return finish(inst, t, H, t + H);
+            return finish_with(inst, t, H, checked, f.inputs_vary);
         }
     }
 
@@ -123,10 +143,13 @@ fmi2Status step_to(Instance *inst, double t, double H)
         double reached;
         memcpy(x_start, x, sizeof x_start);
         reached = integrate_adaptive(&f, memory, x, t, t_end, h, s->real[VR_tol], 0);
-        if (!state_acceptable(inst, x)) { /* outputs overflowed although the state stayed finite: redo, checking */
+        if (!evaluate_at(inst, x, checked)) { /* outputs overflowed although the state stayed finite: redo, checking */
             memcpy(x, x_start, sizeof x_start);
             *memory = memory_start;
             reached = integrate_adaptive(&f, memory, x, t, t_end, h, s->real[VR_tol], 1);
+        } else if (reached == t_end) {
+            memory->n_rhs += f.evaluations;
+            return finish_with(inst, t, H, checked, f.inputs_vary);
         }
         memory->n_rhs += f.evaluations;
         if (reached < t_end) {
@@ -156,9 +179,9 @@ fmi2Status step_to(Instance *inst, double t, double H)
         memcpy(x_start, x, sizeof x_start);
         memory_start = *memory;
         integrate_fixed(&f, solver, memory, x, t, hs, n, 0);
-        if (state_acceptable(inst, x)) {
+        if (evaluate_at(inst, x, checked)) {
             memory->n_rhs += f.evaluations;
-            return finish(inst, t, H, t + H);
+            return finish_with(inst, t, H, checked, f.inputs_vary);
         }
         /* Redo with a check after every substep to find the last good one. */
         memcpy(x, x_start, sizeof x_start);
