@@ -79,3 +79,27 @@ def test_fmutool_check_reports_a_broken_model_structure(broken_fmu):
     result = fmutool(broken_fmu)
     output = result.stdout + result.stderr
     assert "Output 'E_pot' is not listed in <Outputs>" in output and "No semantic error" not in output, output
+
+
+def fmi_sim_binary() -> str | None:
+    import os
+    return os.environ.get("FMI_SIM") or shutil.which("fmi-sim")
+
+
+@pytest.mark.skipif(fmi_sim_binary() is None,
+                    reason="fmi-sim is not installed: `cargo install fmi-sim` needs Debian's libclang-dev and about "
+                           "10 minutes on 2 cores; point FMI_SIM at the binary to run this check")
+@pytest.mark.parametrize("name", ["SimplePendulum", "SpringPendulum", "DoublePendulum"])
+def test_fmi_sim_agrees_with_the_harness(fmu_paths, unzipped, tmp_path, name):
+    import numpy as np
+    from harness.simulation import simulate
+    out = tmp_path / "fmi_sim.csv"
+    result = subprocess.run([fmi_sim_binary(), "--model", str(fmu_paths[name]), "-o", str(out), "co-simulation"],
+                            capture_output=True, text=True, timeout=300)
+    assert result.returncode == 0, result.stderr[-2000:]
+    theirs = np.genfromtxt(out, delimiter=",", names=True)
+    ours = simulate(fmu_paths[name], 10.0, 0.01, unzipdir=unzipped[name])
+    assert len(theirs) == len(ours.values)
+    first_second = ours.time <= 1.0  # the double pendulum is chaotic: rounding differences grow after that
+    for column in ours.columns[1:]:
+        assert np.max(np.abs(theirs[column][first_second] - ours[column][first_second])) < 1e-12, column
