@@ -81,12 +81,10 @@ def command_run(args: argparse.Namespace) -> int:
         def write_row(row) -> None:  # rows go out as they come: a stopped run keeps what it computed
             nonlocal header_written
             if not header_written:
-                stream.write(",".join(master_columns) + "\n")
+                stream.write(",".join(master.columns) + "\n")
                 header_written = True
             stream.write(",".join(f"{v:.17g}" for v in row) + "\n")
 
-        master_columns = ["time"] + [f"{u.name}.{n}" for u in master.units for n in u.real_outputs] + \
-                         [f"{u.name}.{n}" for u in master.units for n in u.integer_outputs]
         result = master.run(on_row=write_row)
     steps = (f"{result.macro_steps} macro steps chosen by step doubling (rows every {step:g} s)" if args.tolerance
              else f"{result.macro_steps} macro steps of {step:g} s")

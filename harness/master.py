@@ -377,11 +377,16 @@ class Master:
         return OK, None, rejected
 
     # ---- the run
+    @property
+    def columns(self) -> list[str]:
+        """time, then <component>.<output> for every Real output, then every Integer output."""
+        return ["time"] + [f"{u.name}.{n}" for u in self.units for n in u.real_outputs] + \
+               [f"{u.name}.{n}" for u in self.units for n in u.integer_outputs]
+
     def run(self, on_row: Callable[[np.ndarray], None] | None = None) -> CoSimulationResult:
         options = self.options
         grid = communication_grid(options.start, options.stop, options.step)
-        columns = ["time"] + [f"{u.name}.{n}" for u in self.units for n in u.real_outputs] + \
-                  [f"{u.name}.{n}" for u in self.units for n in u.integer_outputs]
+        columns = self.columns
         table = np.empty((len(grid), len(columns)))
         energy = np.empty(len(grid))
         has_energy = any(u.energy_index is not None for u in self.units)
@@ -418,6 +423,8 @@ class Master:
                 stopped_at = culprit.instance.last_successful_time() if status == DISCARD else grid[rows - 1]
                 message = f"{culprit.name} could not complete the step from t = {grid[rows - 1]:g}: " \
                           f"{culprit.instance.last_message()}"
+            if not has_energy:
+                energy[:rows] = math.nan  # as the Python loop records it
             grid = grid[:0]  # done: skip the Python loop
         for k, t in enumerate(grid):
             record(t)
