@@ -209,6 +209,14 @@ static int ensure_constants(Instance *inst, const char *function)
     return 1;
 }
 
+int first_non_finite(const double *values, int n)
+{
+    int i;
+    for (i = 0; i < n; i++)
+        if (!isfinite(values[i])) return i;
+    return -1;
+}
+
 void gather_inputs(const Instance *inst, double *u)
 {
 #if N_INPUTS > 0
@@ -239,13 +247,12 @@ static fmi2Status ensure_outputs(Instance *inst, const char *function)
         return fmi2Discard;
     }
     {
-        int i;
-        for (i = 0; i < N_REAL; i++)
-            if (!isfinite(inst->s.real[i])) {
-                log_discard(inst, "%s: %s is not finite for the current inputs and states", function,
-                            REAL_VARIABLES[i].name);
-                return fmi2Discard;
-            }
+        const int bad = first_non_finite(inst->s.real, N_REAL);
+        if (bad >= 0) {
+            log_discard(inst, "%s: %s is not finite for the current inputs and states", function,
+                        REAL_VARIABLES[bad].name);
+            return fmi2Discard;
+        }
     }
     inst->outputs_valid = 1;
     return fmi2OK;

@@ -89,6 +89,9 @@ void log_error(Instance *inst, const char *fmt, ...);
 void log_discard(Instance *inst, const char *fmt, ...);
 void log_debug(Instance *inst, const char *fmt, ...);
 
+/* Index of the first non-finite value among n, or -1 when all are finite. */
+int first_non_finite(const double *values, int n);
+
 /* The current inputs, gathered into a contiguous array. */
 void gather_inputs(const Instance *inst, double *u);
 

@@ -11,14 +11,6 @@
 
 #if N_STATES == 0
 
-static int outputs_finite(const double *real)
-{
-    int i;
-    for (i = 0; i < N_REAL; i++)
-        if (!isfinite(real[i])) return 0;
-    return 1;
-}
-
 fmi2Status step_to(Instance *inst, double t, double H)
 {
     double before[N_REAL];
@@ -26,7 +18,7 @@ fmi2Status step_to(Instance *inst, double t, double H)
     model_advance_inputs(inst->s.real, inst->s.input_derivative, H);
     /* The outputs belong to the end of the step; a singular or overflowing end keeps the step from
      * happening. */
-    if (!model_outputs(&inst->constants, NULL, inst->s.real) || !outputs_finite(inst->s.real)) {
+    if (!model_outputs(&inst->constants, NULL, inst->s.real) || first_non_finite(inst->s.real, N_REAL) >= 0) {
         memcpy(inst->s.real, before, sizeof before);
         inst->outputs_valid = 0;
         log_discard(inst, "fmi2DoStep: singular configuration or non-finite outputs at t = %.17g; "
@@ -61,16 +53,12 @@ static fmi2Status finish(Instance *inst, double t, double H_done, double t_reach
 static int evaluate_at(const Instance *inst, const double *x, double *real)
 {
     double u[INPUT_SLOTS];
-    int i;
     if (!model_state_ok(&inst->constants, x)) return 0;
     memcpy(real, inst->s.real, N_REAL * sizeof(double));
     memcpy(real, x, N_STATES * sizeof(double));
     gather_inputs(inst, u);
     model_derivatives(&inst->constants, x, u, real + N_STATES);
-    if (!model_outputs(&inst->constants, real + N_STATES, real)) return 0;
-    for (i = 0; i < N_REAL; i++)
-        if (!isfinite(real[i])) return 0;
-    return 1;
+    return model_outputs(&inst->constants, real + N_STATES, real) && first_non_finite(real, N_REAL) < 0;
 }
 
 int state_acceptable(const void *context, const double *x)
