@@ -113,6 +113,30 @@ def command_validate(args: argparse.Namespace) -> int:
     return 1 if failed else 0
 
 
+def command_chart(args: argparse.Namespace) -> int:
+    from harness.fmus import build_fmus
+    from harness.work_precision import PENDULUMS
+    objects = args.objects or list(PENDULUMS)
+    unknown = sorted(set(objects) - set(PENDULUMS))
+    if unknown:
+        raise HarnessError(f"--objects: {', '.join(unknown)} is not one of {', '.join(PENDULUMS)}")
+    build_fmus()
+    out = Path(args.out)
+    out.mkdir(parents=True, exist_ok=True)
+    if args.kind == "work-precision":
+        from harness.charts import work_precision_chart
+        from harness.work_precision import pareto_front, settings, work_precision, write_csv
+        points = work_precision(settings(objects, repeats=args.repeats), args.scheduler, args.workers)
+        write_csv(points, out / "work-precision.csv")
+        written = [out / "work-precision.csv", *work_precision_chart(points, out)]
+        for name in objects:
+            front = pareto_front([p for p in points if p.object == name])
+            print(f"{name}: Pareto front (evaluations -> error): "
+                  + ", ".join(f"{p.method} {p.rhs_evals} -> {p.error:.1e}" for p in front))
+    print("wrote " + ", ".join(str(p) for p in written))
+    return 0
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog="harness", description="Pendulum FMUs: simulate, couple, validate, chart.")
     sub = parser.add_subparsers(dest="command", required=True)
@@ -148,6 +172,16 @@ def build_parser() -> argparse.ArgumentParser:
     p = sub.add_parser("validate", help="check FMUs: fmpy validation, runtime conformance, physics and numerics")
     p.add_argument("fmu", nargs="+", help=".fmu files or the project's FMU names")
     p.set_defaults(run=command_validate)
+
+    p = sub.add_parser("chart", help="sweeps and their charts: work-precision, stability, coupling")
+    p.add_argument("kind", choices=["work-precision"], help="which sweep")
+    p.add_argument("--out", default="charts", help="output folder for the CSV and the PNG/SVG charts")
+    p.add_argument("--objects", nargs="+", metavar="NAME", help="pendulums to include (default: all three)")
+    p.add_argument("--repeats", type=int, default=3, help="timed repeats per point; the median is kept (default 3)")
+    p.add_argument("--workers", type=int, help="parallel worker processes (default: all local cores)")
+    p.add_argument("--scheduler", metavar="ADDRESS",
+                   help="run the sweep on a Dask cluster: 'local' starts one here, HOST:PORT uses a running one")
+    p.set_defaults(run=command_chart)
 
     p = sub.add_parser("demo", help="the main job: build the FMUs, run the thesis scene, write CSV and traces")
     p.add_argument("--out", default="out", help="output folder (default out/)")

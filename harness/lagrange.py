@@ -3,6 +3,7 @@ with generalized forces Q_j = F . dr/dq_j and the damping -d qdot_j, done symbol
 the positions alone (no equation of the C code is reused)."""
 from __future__ import annotations
 
+from functools import lru_cache
 from typing import Callable
 
 import numpy as np
@@ -75,6 +76,7 @@ MODELS: dict[str, Callable] = {"SimplePendulum": simple_pendulum, "DoublePendulu
 
 
 
+@lru_cache(maxsize=None)  # the derivation takes seconds; its result never changes
 def derived_model(name: str):
     """(names of the arguments, f(*values) -> [accelerations..., T, U, positions...], positions' names)."""
     params, q, qd, T, U, force_point, positions = MODELS[name]()

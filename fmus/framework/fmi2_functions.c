@@ -240,6 +240,9 @@ static fmi2Status ensure_outputs(Instance *inst, const char *function)
         gather_inputs(inst, u);
         dx = inst->s.real + N_STATES; /* der(x) follow the states (checked by the code generator) */
         model_derivatives(&inst->constants, inst->s.real, u, dx);
+        /* In Model Exchange these are the importer's solver's evaluations; in Co-Simulation the
+           integrator counts its own and this one only serves the outputs. */
+        if (inst->type == fmi2ModelExchange) inst->s.integrator.n_rhs++;
     }
 #endif
     if (!model_outputs(&inst->constants, dx, inst->s.real)) {

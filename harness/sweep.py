@@ -1,0 +1,56 @@
+"""Runs a function over many independent items: in this process, over the local cores, or on a Dask
+distributed cluster.
+
+    scheduler=None        a process pool over `workers` local cores (default: all)
+    scheduler="local"     a Dask LocalCluster started for the sweep (`workers` worker processes)
+    scheduler="HOST:PORT" an existing Dask scheduler; its workers need the harness installed and the
+                          FMU files at the same paths (a shared file system)
+
+Results come back in the order of the items. Every item is computed in a worker process, so a crash
+in one FMU run cannot take the caller down.
+"""
+from __future__ import annotations
+
+import os
+from concurrent.futures import ProcessPoolExecutor
+from typing import Callable, Iterable, TypeVar
+
+from harness.errors import HarnessError
+
+Item = TypeVar("Item")
+Result = TypeVar("Result")
+
+
+def local_cores() -> int:
+    return len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else (os.cpu_count() or 1)
+
+
+def run_sweep(function: Callable[[Item], Result], items: Iterable[Item], scheduler: str | None = None,
+              workers: int | None = None) -> list[Result]:
+    items = list(items)
+    if workers is not None and workers < 1:
+        raise HarnessError(f"--workers {workers}: need at least 1")
+    if scheduler is None:
+        workers = workers or local_cores()
+        if workers == 1:
+            return [function(item) for item in items]
+        with ProcessPoolExecutor(max_workers=workers) as pool:
+            return list(pool.map(function, items))
+    return _dask_map(function, items, scheduler, workers)
+
+
+def _dask_map(function, items, scheduler: str, workers: int | None):
+    try:
+        from distributed import Client, LocalCluster
+    except ImportError:  # pragma: no cover - a dependency of the package
+        raise HarnessError("a Dask scheduler needs the 'distributed' package") from None
+    if scheduler == "local":
+        with LocalCluster(n_workers=workers or local_cores(), threads_per_worker=1, processes=True,
+                          dashboard_address=None) as cluster, Client(cluster) as client:
+            return client.gather(client.map(function, items, pure=False))
+    try:
+        client = Client(scheduler, timeout="5s")
+    except OSError as error:
+        raise HarnessError(f"--scheduler {scheduler}: cannot connect ({error})") from None
+    with client:
+        return client.gather(client.map(function, items, pure=False))
