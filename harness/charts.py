@@ -59,3 +59,75 @@ def work_precision_chart(points: list[Point], out: Path) -> list[Path]:
     figure.suptitle("Work-precision, 10 s from the default start, communication step 0.01 s")
     figure.tight_layout()
     return save(figure, out, "work-precision")
+
+
+def stability_charts(limits, cases, tables: dict, out: Path) -> list[Path]:
+    """Each method's region |growth| <= 1 in the complex h*lambda plane with the measured limits on
+    it (filled) and the predicted ones (hollow); and the limits per case side by side."""
+    import numpy as np
+
+    from harness.stability import growth_on_grid, measured_point
+    by_key = {(c.object, round(c.damping, 12), c.release): c for c in cases}
+    methods = list(dict.fromkeys(limit.method for limit in limits))
+    columns = 4
+    rows = math.ceil(len(methods) / columns)
+    figure, axes = plt.subplots(rows, columns, figsize=(4.2 * columns, 4 * rows), squeeze=False)
+    markers = {"SimplePendulum": "o", "DoublePendulum": "s", "SpringPendulum": "D"}
+    for ax, method in zip(axes.flat, methods):
+        mine = [(limit, by_key[(limit.object, round(limit.damping, 12), limit.release)]) for limit in limits
+                if limit.method == method]
+        points = [(limit, case, measured_point(limit, case)) for limit, case in mine]
+        reach = max(abs(z) for _, case, z in points if case.linear)
+        x = np.linspace(-1.35 * reach, 0.45 * reach, 320)
+        y = np.linspace(-1.25 * reach, 1.25 * reach, 320)
+        grid = x[None, :] + 1j * y[:, None]
+        g = growth_on_grid(tables[method], grid)
+        ax.contourf(x, y, (g <= 1.0).astype(float), levels=[0.5, 1.5], colors=["#cfe3f7"])
+        ax.contour(x, y, g, levels=[1.0], colors=["#2b6cb0"], linewidths=1.0)
+        ax.axhline(0, color="grey", linewidth=0.5)
+        ax.axvline(0, color="grey", linewidth=0.5)
+        for limit, case, z in points:
+            if case.linear:
+                ax.plot(z.real, z.imag, markers[case.object], color="#c53030", markersize=5)
+                if math.isfinite(limit.theory_limit):
+                    t = z * limit.theory_limit / limit.measured_limit
+                    ax.plot(t.real, t.imag, markers[case.object], markerfacecolor="none", color="black", markersize=9)
+            else:
+                ax.plot(z.real, z.imag, "x", color="#805ad5", markersize=8)
+        ax.set_title(method)
+        ax.set_aspect("equal")
+        ax.set_xlabel("Re h·λ")
+        ax.set_ylabel("Im h·λ")
+    for ax in list(axes.flat)[len(methods):]:
+        ax.axis("off")
+    legend_ax = list(axes.flat)[-1]
+    for name, marker in markers.items():
+        legend_ax.plot([], [], marker, color="#c53030", label=f"measured: {name}")
+    legend_ax.plot([], [], "o", markerfacecolor="none", color="black", label="predicted over the same window")
+    legend_ax.plot([], [], "x", color="#805ad5", label="measured: 3 rad release (nonlinear)")
+    legend_ax.fill_between([], [], color="#cfe3f7", label="|growth| <= 1")
+    legend_ax.legend(loc="center", fontsize=9)
+    figure.suptitle("Stability regions with the limits measured on the FMUs (100 periods, energy <= 1.5 x start)")
+    figure.tight_layout()
+    paths = save(figure, out, "stability-regions")
+
+    groups = list(dict.fromkeys((limit.object, limit.damping, limit.release) for limit in limits))
+    figure, ax = plt.subplots(figsize=(13, 6))
+    colours = plt.get_cmap("viridis")
+    for k, group in enumerate(groups):
+        mine = {limit.method: limit for limit in limits if (limit.object, limit.damping, limit.release) == group}
+        xs = [methods.index(m) + (k - len(groups) / 2) * 0.06 for m in mine]
+        colour = colours(k / max(len(groups) - 1, 1))
+        object_name, damping, release = group
+        label = f"{object_name}, d = {damping:.3g}/s" + (", 3 rad" if release > 1 else "")
+        ax.plot(xs, [limit.measured_limit for limit in mine.values()], markers[object_name], color=colour,
+                markersize=5, linestyle="none", label=label)
+        ax.plot(xs, [limit.theory_limit for limit in mine.values()], "_", color="black", markersize=9)
+    ax.set_xticks(range(len(methods)), methods)
+    ax.set_yscale("log")
+    ax.set_ylabel("largest stable h·ω (measured: markers; predicted: black dashes)")
+    ax.grid(True, axis="y", alpha=0.3)
+    ax.legend(fontsize=7, ncol=2)
+    ax.set_title("Stability limits per method and case")
+    figure.tight_layout()
+    return paths + save(figure, out, "stability-limits")

@@ -133,6 +133,19 @@ def command_chart(args: argparse.Namespace) -> int:
             front = pareto_front([p for p in points if p.object == name])
             print(f"{name}: Pareto front (evaluations -> error): "
                   + ", ".join(f"{p.method} {p.rhs_evals} -> {p.error:.1e}" for p in front))
+    elif args.kind == "stability":
+        from harness.charts import stability_charts
+        from harness.fmus import build_dir
+        from harness.stability import atlas, cases, method_tables, write_csv
+        fmu_dir = build_dir() / "fmus"
+        limits = atlas(fmu_dir, full=args.full, scheduler=args.scheduler, workers=args.workers)
+        write_csv(limits, out / "stability.csv")
+        written = [out / "stability.csv", *stability_charts(limits, cases(fmu_dir, args.full), method_tables(), out)]
+        linear = [x for x in limits if x.theory_limit == x.theory_limit]
+        worst = max(linear, key=lambda x: abs(x.measured_limit / x.theory_limit - 1))
+        print(f"{len(limits)} limits measured; largest deviation from the prediction in the linear cases: "
+              f"{worst.measured_limit / worst.theory_limit - 1:+.2%} ({worst.object}, {worst.method}, "
+              f"d = {worst.damping:.3g}/s)")
     print("wrote " + ", ".join(str(p) for p in written))
     return 0
 
@@ -174,10 +187,11 @@ def build_parser() -> argparse.ArgumentParser:
     p.set_defaults(run=command_validate)
 
     p = sub.add_parser("chart", help="sweeps and their charts: work-precision, stability, coupling")
-    p.add_argument("kind", choices=["work-precision"], help="which sweep")
+    p.add_argument("kind", choices=["work-precision", "stability"], help="which sweep")
     p.add_argument("--out", default="charts", help="output folder for the CSV and the PNG/SVG charts")
     p.add_argument("--objects", nargs="+", metavar="NAME", help="pendulums to include (default: all three)")
     p.add_argument("--repeats", type=int, default=3, help="timed repeats per point; the median is kept (default 3)")
+    p.add_argument("--full", action="store_true", help="stability: the full atlas (19 damping ratios instead of 8)")
     p.add_argument("--workers", type=int, help="parallel worker processes (default: all local cores)")
     p.add_argument("--scheduler", metavar="ADDRESS",
                    help="run the sweep on a Dask cluster: 'local' starts one here, HOST:PORT uses a running one")

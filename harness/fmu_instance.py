@@ -80,6 +80,23 @@ def read_fmi2_description(path: Path):
         raise HarnessError(f"{path}: invalid modelDescription.xml ({_first_line(error)})") from None
 
 
+_GETTER = ctypes.CFUNCTYPE(ctypes.c_int, ctypes.c_void_p, ctypes.c_void_p, ctypes.c_size_t, ctypes.c_void_p)
+_STEPPER = ctypes.CFUNCTYPE(ctypes.c_int, ctypes.c_void_p, ctypes.c_double, ctypes.c_double, ctypes.c_int)
+
+
+class RawCalls:
+    """fmi2GetReal, fmi2GetInteger and fmi2DoStep on their own prototypes (the same entry points as
+    fmpy's): arrays go in as plain addresses, so a loop can write straight into numpy rows."""
+
+    def __init__(self, dll, component) -> None:
+        def address(function) -> int:
+            return ctypes.cast(function, ctypes.c_void_p).value
+        self.component = ctypes.c_void_p(component)
+        self.get_real = _GETTER(address(dll.fmi2GetReal))
+        self.get_integer = _GETTER(address(dll.fmi2GetInteger))
+        self.do_step = _STEPPER(address(dll.fmi2DoStep))
+
+
 class FmuInstance:
     """An instantiated FMU (Co-Simulation by default, Model Exchange with kind="ME")."""
 
@@ -87,6 +104,7 @@ class FmuInstance:
                  unzipdir: str | None = None):
         self.path = Path(fmu)
         self.fmu = None
+        self._raw = None
         self.model_description = read_fmi2_description(self.path)
         self.unzipdir = unzipdir or extract(str(self.path))
         self.variables = {v.name: v for v in self.model_description.modelVariables}
@@ -163,6 +181,13 @@ class FmuInstance:
                 raise HarnessError(f"fmi2Get of {name} returned {STATUS_NAMES[status]}: {self.last_message()}")
             values.append(out[0])
         return values
+
+    @property
+    def raw(self) -> "RawCalls":
+        """Hot-loop entry points with plain-address prototypes, made once per instance."""
+        if self._raw is None:
+            self._raw = RawCalls(self.fmu.dll, self.fmu.component)
+        return self._raw
 
     def call(self, function: str, *args) -> int:
         """A raw fmi2 call by name, returning its status (fmpy's wrappers raise instead)."""

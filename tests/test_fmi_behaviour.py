@@ -13,13 +13,11 @@ import pytest
 from fmpy import simulate_fmu
 from scipy.integrate import solve_ivp
 
+from harness.equations import OUTER_MASS, STATES
 from harness.fmu_instance import DISCARD, ERROR, OK
 from harness.simulation import simulate
 
 PENDULUMS = ("SimplePendulum", "DoublePendulum", "SpringPendulum")
-STATES = {"SimplePendulum": ("phi", "omega"), "DoublePendulum": ("phi1", "phi2", "omega1", "omega2"),
-          "SpringPendulum": ("phi", "eps", "omega", "v_eps")}
-POSITION = {"SimplePendulum": ("x", "y"), "DoublePendulum": ("x2", "y2"), "SpringPendulum": ("x", "y")}
 
 
 # ---------------------------------------------------------------- CS and ME
@@ -31,10 +29,10 @@ def test_co_simulation_agrees_with_model_exchange_under_cvode(fmu_paths, name):
                       start_values={"solver": 7, "h": 0.002})
     me = simulate_fmu(str(fmu_paths[name]), fmi_type="ModelExchange", stop_time=stop, output_interval=0.01,
                       relative_tolerance=1e-10)
-    x, y = POSITION[name]
+    x, y = OUTER_MASS[name]
     assert np.max(np.hypot(cs[x] - np.interp(cs["time"], me["time"], me[x]),
                            cs[y] - np.interp(cs["time"], me["time"], me[y]))) < 1e-6
-    assert me["n_rhs"][-1] == 0  # the counters count fmi2DoStep's own work only
+    assert me["n_rhs"][-1] > len(me)  # in ME the FMU counts CVode's evaluations: at least one per output point
 
 
 def test_spring_simulates_in_both_interfaces(fmu_paths):
@@ -169,7 +167,7 @@ def test_blow_up_gives_discard_with_last_good_state(open_fmu, name, values, meth
     assert status == DISCARD
     last = fmu.last_successful_time()
     assert t - H <= last < t
-    outputs = fmu.get(*STATES[name], *POSITION[name], "E")
+    outputs = fmu.get(*STATES[name], *OUTER_MASS[name], "E")
     assert all(math.isfinite(v) for v in outputs)
     message = fmu.last_message()
     assert method in message and f"h = {values['h']:g}" in message and "last successful time" in message

@@ -1,0 +1,295 @@
+"""The stability atlas: where each fixed-step method stops working, measured on the FMUs and
+predicted from the method's amplification.
+
+A setting is stable when, after the window (100 periods of the case's reference frequency omega),
+the energy above the rest position is at most 1.5 times its start and the run returned fmi2OK
+(no fmi2Discard). The run is one fmi2DoStep over the whole window with h = window / n, so the
+scanned values h*omega = 2*pi*100/n are exact. `measured_limit` is the largest stable h*omega below
+the first unstable one: a coarse scan upward from a quarter of the predicted limit, then bisection
+on n. `theory_limit` is the same criterion applied to the linear test equation y' = lambda y over
+the same window: growth^(2N) <= 1.5 with N = window / h steps, where growth is max |R(h lambda)|
+for Runge-Kutta methods and the spectral radius of the recursion for Adams-Bashforth methods, over
+the eigenvalues lambda of the linearized case.
+
+Cases (`release` is the start amplitude, rad or m):
+  * SimplePendulum from rest at 0.01 rad, damping d = zeta * 2 * omega0 for a set of damping ratios
+    (0: the imaginary axis; d = 20 omega0: the real axis; between: rays into the left half-plane);
+  * SimplePendulum from rest at 3 rad, undamped: nonlinear, no linear prediction;
+  * DoublePendulum and SpringPendulum released at rest in their fastest linearized normal mode
+    (largest coordinate 0.01), omega = that mode's frequency.
+"""
+from __future__ import annotations
+
+import csv
+import json
+import math
+import subprocess
+from dataclasses import asdict, dataclass, field
+from functools import lru_cache
+from pathlib import Path
+
+import numpy as np
+
+from harness.sweep import run_sweep
+
+PERIODS = 100
+GROWTH_LIMIT = 1.5
+FIXED_STEP = ("euler", "midpoint", "heun", "rk3", "rk4", "nystrom5", "ab2", "ab3", "ab4", "ab5", "ab6")
+DAMPING_RATIOS = (0.0, 0.1, 0.25, 0.5, 0.75, 0.95, 2.0, 10.0)  # zeta = d / (2 omega0); 10 is d = 20 omega0
+FULL_DAMPING_RATIOS = (0.0, 0.05, 0.1, 0.175, 0.25, 0.375, 0.5, 0.625, 0.75, 0.85, 0.95, 1.0, 1.25, 1.5, 2.0, 3.0,
+                       5.0, 10.0, 20.0)
+
+
+@lru_cache(maxsize=None)
+def method_tables(program: str | None = None) -> dict:
+    """The Butcher tableaux and Adams-Bashforth coefficients as the FMUs hold them (printed by the
+    build's `integrator_tables`)."""
+    from harness.fmus import build_dir, build_fmus
+    if program is None:
+        build_fmus()
+        program = str(build_dir() / "bin" / "integrator_tables")
+    return json.loads(subprocess.run([program], check=True, capture_output=True, text=True).stdout)
+
+
+def growth(table: dict, z: complex) -> float:
+    """|R(z)| for a Runge-Kutta method, the spectral radius of the k-step recursion for Adams-Bashforth
+    (`table`: one entry of method_tables())."""
+    if "beta" in table:
+        beta = table["beta"]
+        # zeta^k - zeta^(k-1) - z sum_j beta_j zeta^(k-1-j) = 0
+        coefficients = np.zeros(len(beta) + 1, dtype=complex)
+        coefficients[0], coefficients[1] = 1.0, -1.0
+        coefficients[1:] -= z * np.asarray(beta)
+        return float(np.max(np.abs(np.roots(coefficients))))
+    a, b = np.asarray(table["a"], dtype=float), np.asarray(table["b"], dtype=float)
+    stages = len(b)
+    return float(abs(1 + z * b @ np.linalg.solve(np.eye(stages) - z * a, np.ones(stages))))
+
+
+@dataclass(frozen=True)
+class Case:
+    """One column of the atlas: an object released from rest, with the eigenvalues of its
+    linearization as multiples of omega (empty for a nonlinear case)."""
+    object: str
+    damping: float  # d [1/s]
+    release: float
+    omega: float  # the reference frequency [rad/s]: the x-axis is h * omega, the window 100 periods of it
+    start: dict = field(default_factory=dict, hash=False, compare=False)
+    rest: dict = field(default_factory=dict, hash=False, compare=False)
+    eigenvalues: tuple = ()  # lambda / omega
+
+    @property
+    def window(self) -> float:
+        return PERIODS * 2 * math.pi / self.omega
+
+    @property
+    def linear(self) -> bool:
+        return bool(self.eigenvalues)
+
+
+def theory_limit(table: dict, case: Case) -> float:
+    """Largest h*omega below the first one whose growth over the window exceeds the limit."""
+    if not case.linear:
+        return math.nan
+
+    def stable(y: float) -> bool:
+        steps = PERIODS * 2 * math.pi / y
+        g = max(growth(table, y * lam) for lam in case.eigenvalues)
+        return 2 * steps * math.log(max(g, 1e-300)) <= math.log(GROWTH_LIMIT)
+    y = 1e-6
+    while stable(y * 1.02):
+        y *= 1.02
+        if y > 50:
+            return math.inf
+    low, high = y, y * 1.02
+    for _ in range(60):
+        middle = 0.5 * (low + high)
+        low, high = (middle, high) if stable(middle) else (low, middle)
+    return low
+
+
+def _parameters(fmu: Path) -> dict[str, float]:
+    from harness.fmu_instance import read_fmi2_description
+    return {v.name: float(v.start) for v in read_fmi2_description(fmu).modelVariables
+            if v.type == "Real" and v.start is not None}
+
+
+def simple_cases(fmu: Path, ratios=DAMPING_RATIOS) -> list[Case]:
+    p = _parameters(fmu)
+    omega0 = math.sqrt(p["g"] / p["L"])
+    cases = []
+    for zeta in ratios:
+        root = complex(zeta * zeta - 1) ** 0.5
+        eigenvalues = (-zeta + root, -zeta - root)
+        cases.append(Case("SimplePendulum", 2 * zeta * omega0, 0.01, omega0, {"phi": 0.01, "omega": 0.0},
+                          {"phi": 0.0, "omega": 0.0}, eigenvalues))
+    cases.append(Case("SimplePendulum", 0.0, 3.0, omega0, {"phi": 3.0, "omega": 0.0}, {"phi": 0.0, "omega": 0.0}))
+    return cases
+
+
+def double_case(fmu: Path) -> Case:
+    p = _parameters(fmu)
+    mass = np.array([[p["m1"] * p["s1"] ** 2 + p["J1"] + p["m2"] * p["l1"] ** 2, p["m2"] * p["l1"] * p["s2"]],
+                     [p["m2"] * p["l1"] * p["s2"], p["m2"] * p["s2"] ** 2 + p["J2"]]])
+    stiffness = np.diag([(p["m1"] * p["s1"] + p["m2"] * p["l1"]) * p["g"], p["m2"] * p["s2"] * p["g"]])
+    squares, shapes = np.linalg.eig(np.linalg.solve(mass, stiffness))
+    fastest = int(np.argmax(squares.real))
+    omega = math.sqrt(squares[fastest].real)
+    shape = shapes[:, fastest].real
+    shape = 0.01 * shape / np.max(np.abs(shape))
+    eigenvalues = tuple(s * math.sqrt(q.real) / omega for q in squares for s in (1j, -1j))
+    return Case("DoublePendulum", 0.0, 0.01, omega,
+                {"phi1": float(shape[0]), "phi2": float(shape[1]), "omega1": 0.0, "omega2": 0.0},
+                {"phi1": 0.0, "phi2": 0.0, "omega1": 0.0, "omega2": 0.0}, eigenvalues)
+
+
+def spring_case(fmu: Path) -> Case:
+    """Hanging at rest the pendulum and the spring modes decouple; the faster one is released."""
+    p = _parameters(fmu)
+    stretch = p["m"] * p["g"] / p["D"]
+    spring, swing = math.sqrt(p["D"] / p["m"]), math.sqrt(p["g"] / (p["l0"] + stretch))
+    omega = max(spring, swing)
+    start = ({"phi": 0.0, "eps": stretch + 0.01} if spring >= swing else {"phi": 0.01, "eps": stretch})
+    eigenvalues = tuple(s * w / omega for w in (spring, swing) for s in (1j, -1j))
+    return Case("SpringPendulum", 0.0, 0.01, omega, dict(start, omega=0.0, v_eps=0.0),
+                {"phi": 0.0, "eps": stretch, "omega": 0.0, "v_eps": 0.0}, eigenvalues)
+
+
+@dataclass
+class Limit:
+    object: str
+    method: str
+    damping: float
+    measured_limit: float
+    theory_limit: float
+    release: float
+    runs: int  # FMU runs the scan took
+
+    @staticmethod
+    def columns() -> list[str]:
+        return ["object", "method", "damping", "measured_limit", "theory_limit", "release"]
+
+
+class Probe:
+    """One FMU instance that answers 'is this h*omega stable?' for one case and method."""
+
+    def __init__(self, fmu: str, case: Case, method: str):
+        from harness.fmu_instance import FmuInstance
+        self.instance = FmuInstance(fmu, name=f"{case.object}-{method}")
+        self.case, self.method = case, method
+        self.runs = 0
+        self.instance.initialize(0.0, d=case.damping, **case.rest)
+        self.rest_energy = self.instance.get("E")[0]
+        self.instance.call("fmi2Reset")
+
+    def stable(self, n: int) -> bool:
+        from harness.fmu_instance import OK
+        self.runs += 1
+        case, instance = self.case, self.instance
+        instance.call("fmi2Reset")
+        instance.initialize(0.0, solver=self.method, h=case.window / n, d=case.damping, **case.start)
+        start = instance.get("E")[0] - self.rest_energy
+        if instance.do_step(0.0, case.window) != OK:
+            return False
+        end = instance.get("E")[0] - self.rest_energy
+        return math.isfinite(end) and end <= GROWTH_LIMIT * start
+
+    def close(self) -> None:
+        self.instance.free()
+
+
+def _steps(case: Case, y: float) -> int:
+    return max(1, round(case.window * case.omega / y))
+
+
+def measure(job: tuple[str, Case, str, dict]) -> Limit:
+    """The measured limit for one case and method (runs in a worker)."""
+    fmu, case, method, table = job
+    linear_twin = case if case.linear else Case(case.object, case.damping, 0.01, case.omega,
+                                                eigenvalues=(1j, -1j))
+    hint = theory_limit(table, linear_twin)
+    probe = Probe(fmu, case, method)
+    try:
+        y = hint / 4
+        while not probe.stable(_steps(case, y)):  # a nonlinear case can fail below the linear hint
+            y /= 4
+            if y < 1e-7:
+                return Limit(case.object, method, case.damping, 0.0, theory_limit(table, case), case.release,
+                             probe.runs)
+        stable_n = _steps(case, y)
+        while True:
+            y *= 1.25
+            n = _steps(case, y)
+            if n == stable_n:
+                n -= 1
+            if n < 1 or not probe.stable(n):
+                unstable_n = max(n, 0)
+                break
+            stable_n = n
+        while stable_n - unstable_n > 1:  # fewer steps = larger h*omega
+            middle = (stable_n + unstable_n) // 2
+            if probe.stable(middle):
+                stable_n = middle
+            else:
+                unstable_n = middle
+        measured = case.window * case.omega / stable_n
+        return Limit(case.object, method, case.damping, measured, theory_limit(table, case), case.release,
+                     probe.runs)
+    finally:
+        probe.close()
+
+
+def cases(fmu_dir: Path, full: bool = False) -> list[Case]:
+    fmu_dir = Path(fmu_dir)
+    return [*simple_cases(fmu_dir / "SimplePendulum.fmu", FULL_DAMPING_RATIOS if full else DAMPING_RATIOS),
+            double_case(fmu_dir / "DoublePendulum.fmu"), spring_case(fmu_dir / "SpringPendulum.fmu")]
+
+
+def atlas(fmu_dir: Path, methods=FIXED_STEP, full: bool = False, scheduler: str | None = None,
+          workers: int | None = None) -> list[Limit]:
+    tables = method_tables()
+    jobs = [(str(Path(fmu_dir) / f"{case.object}.fmu"), case, method, tables[method])
+            for case in cases(fmu_dir, full) for method in methods]
+    return run_sweep(measure, jobs, scheduler, workers)
+
+
+def write_csv(limits: list[Limit], path: Path) -> None:
+    with open(path, "w", newline="") as handle:
+        writer = csv.DictWriter(handle, fieldnames=Limit.columns(), extrasaction="ignore")
+        writer.writeheader()
+        for limit in limits:
+            writer.writerow({k: ("" if isinstance(v, float) and math.isnan(v) else v) for k, v in asdict(limit).items()})
+
+
+def read_csv(path: Path) -> list[Limit]:
+    with open(path, newline="") as handle:
+        return [Limit(r["object"], r["method"], float(r["damping"]), float(r["measured_limit"]),
+                      float(r["theory_limit"] or "nan"), float(r["release"]), 0) for r in csv.DictReader(handle)]
+
+
+def growth_on_grid(table: dict, z: np.ndarray) -> np.ndarray:
+    """growth() for an array of z at once (the stability-region charts)."""
+    z = np.asarray(z, dtype=complex)
+    if "beta" in table:
+        beta = np.asarray(table["beta"])
+        k = len(beta)
+        companion = np.zeros(z.shape + (k, k), dtype=complex)
+        companion[..., 0, :] = z[..., None] * beta  # zeta^k = (1 + z beta_0) zeta^(k-1) + z beta_1 zeta^(k-2) ...
+        companion[..., 0, 0] += 1.0
+        if k > 1:
+            companion[..., np.arange(1, k), np.arange(k - 1)] = 1.0
+        return np.max(np.abs(np.linalg.eigvals(companion)), axis=-1)
+    a, b = np.asarray(table["a"], dtype=float), np.asarray(table["b"], dtype=float)
+    # explicit: R(z) = 1 + sum_k (b A^(k-1) 1) z^k
+    power, value = np.ones(len(b)), np.ones_like(z)
+    for k in range(1, len(b) + 1):
+        value = value + (b @ power) * z ** k
+        power = a @ power
+    return np.abs(value)
+
+
+def measured_point(limit: Limit, case: Case) -> complex:
+    """Where a measured limit sits in the complex h*lambda plane: on the eigenvalue that grows first."""
+    if not case.linear:
+        return 1j * limit.measured_limit
+    return limit.measured_limit * max(case.eigenvalues, key=lambda lam: (round(abs(lam), 9), lam.imag))

@@ -1,0 +1,116 @@
+"""What the stability atlas claims: measured limits within 5% of the prediction in every linear case,
+the predictions themselves right (against SPEC's table and closed forms), and the criterion able to
+tell a stable run from an unstable one."""
+from __future__ import annotations
+
+import csv
+import math
+
+import numpy as np
+import pytest
+
+from harness.cli import main
+from harness.fmus import build_dir
+from harness.stability import (FIXED_STEP, GROWTH_LIMIT, PERIODS, Case, Probe, growth, method_tables, read_csv,
+                               simple_cases, theory_limit)
+
+
+@pytest.fixture(scope="module")
+def atlas(fmu_paths, tmp_path_factory):
+    out = tmp_path_factory.mktemp("stability")
+    assert main(["chart", "stability", "--out", str(out)]) == 0
+    return out, read_csv(out / "stability.csv")
+
+
+def test_the_files_and_the_columns(atlas):
+    out, limits = atlas
+    with open(out / "stability.csv") as handle:
+        assert next(csv.reader(handle))[:5] == ["object", "method", "damping", "measured_limit", "theory_limit"]
+    for stem in ("stability-regions", "stability-limits"):
+        for suffix in ("png", "svg"):
+            assert (out / f"{stem}.{suffix}").stat().st_size > 10_000
+    cases = {(x.object, x.damping, x.release) for x in limits}
+    assert ("SimplePendulum", 0.0, 0.01) in cases and ("SimplePendulum", 0.0, 3.0) in cases
+    omega0 = math.sqrt(9.81)
+    assert any(x.object == "SimplePendulum" and x.damping == pytest.approx(20 * omega0) for x in limits)
+    for name in ("DoublePendulum", "SpringPendulum"):
+        assert {x.method for x in limits if x.object == name} == set(FIXED_STEP)
+
+
+def test_measured_limits_agree_with_the_prediction_in_the_linear_cases(atlas):
+    linear = [x for x in atlas[1] if x.release < 1]
+    assert len(linear) == 10 * len(FIXED_STEP)
+    for x in linear:
+        assert x.measured_limit == pytest.approx(x.theory_limit, rel=0.05), (x.object, x.method, x.damping)
+
+
+def test_nonlinear_limits_are_measured_without_a_prediction(atlas):
+    nonlinear = [x for x in atlas[1] if x.release == 3.0]
+    assert len(nonlinear) == len(FIXED_STEP)
+    assert all(math.isnan(x.theory_limit) and x.measured_limit > 0 for x in nonlinear)
+
+
+def test_multi_body_limits_are_the_simple_pendulums_on_their_fastest_mode(atlas):
+    """Released in its fastest normal mode, each object has the limit of the undamped linear
+    oscillator in h*omega_max: the same predicted value as the simple pendulum's."""
+    undamped = {x.method: x for x in atlas[1] if x.object == "SimplePendulum" and x.damping == 0 and x.release < 1}
+    for x in atlas[1]:
+        if x.object != "SimplePendulum":
+            assert x.theory_limit == pytest.approx(undamped[x.method].theory_limit, rel=1e-9)
+
+
+# The predictions, checked independently of the FMUs.
+SPEC_REAL_AXIS = {"euler": 2, "midpoint": 2, "heun": 2, "rk3": 2.513, "rk4": 2.785, "nystrom5": 3.22,
+                  "ab2": 1, "ab3": 0.545, "ab4": 0.300, "ab5": 0.163, "ab6": 0.088}
+SPEC_IMAGINARY_AXIS = {"rk3": math.sqrt(3), "rk4": 2 * math.sqrt(2), "ab3": 0.72, "ab4": 0.43}
+
+
+def boundary(method: str, direction: complex) -> float:
+    """Largest r with growth(r * direction) <= 1 (+ rounding), from r = 0 outward."""
+    table = method_tables()[method]
+    r = 1e-3
+    while growth(table, (r * 1.001) * direction) <= 1 + 1e-12 and r < 10:
+        r *= 1.001
+    return r
+
+
+@pytest.mark.parametrize("method", FIXED_STEP)
+def test_real_axis_boundaries_are_the_contracts(method):
+    assert boundary(method, -1) == pytest.approx(SPEC_REAL_AXIS[method], rel=0.01)
+
+
+@pytest.mark.parametrize("method", sorted(SPEC_IMAGINARY_AXIS))
+def test_imaginary_axis_boundaries_are_the_contracts(method):
+    assert boundary(method, 1j) == pytest.approx(SPEC_IMAGINARY_AXIS[method], rel=0.01)
+
+
+def test_window_limits_have_closed_forms_for_euler_and_midpoint():
+    """|R(iy)|^2 = 1 + y^2 (euler) and 1 + y^4/4 (midpoint); N = 200 pi / y steps; 1.5 x energy:
+    N ln(1 + y^2) = ln 1.5 and N ln(1 + y^4/4) = ln 1.5."""
+    from scipy.optimize import brentq
+    undamped = Case("SimplePendulum", 0.0, 0.01, 1.0, eigenvalues=(1j, -1j))
+    steps = lambda y: PERIODS * 2 * math.pi / y  # noqa: E731
+    euler = brentq(lambda y: steps(y) * math.log1p(y * y) - math.log(GROWTH_LIMIT), 1e-6, 1)
+    midpoint = brentq(lambda y: steps(y) * math.log1p(y ** 4 / 4) - math.log(GROWTH_LIMIT), 1e-3, 1)
+    tables = method_tables()
+    assert theory_limit(tables["euler"], undamped) == pytest.approx(euler, rel=1e-6)
+    assert theory_limit(tables["midpoint"], undamped) == pytest.approx(midpoint, rel=1e-6)
+
+
+def test_the_criterion_separates_stable_from_unstable(fmu_paths):
+    """rk4 on the undamped pendulum: 10% below the prediction the energy stays, 10% above it grows."""
+    case = simple_cases(build_dir() / "fmus" / "SimplePendulum.fmu", ratios=(0.0,))[0]
+    limit = theory_limit(method_tables()["rk4"], case)
+    probe = Probe(str(fmu_paths["SimplePendulum"]), case, "rk4")
+    try:
+        assert probe.stable(round(case.window * case.omega / (0.9 * limit)))
+        assert not probe.stable(round(case.window * case.omega / (1.1 * limit)))
+    finally:
+        probe.close()
+
+
+def test_adams_bashforth_growth_is_the_largest_root():
+    """ab2 at z: roots of zeta^2 - (1 + 3z/2) zeta + z/2."""
+    z = 0.3 + 0.4j
+    roots = np.roots([1, -(1 + 1.5 * z), 0.5 * z])
+    assert growth(method_tables()["ab2"], z) == pytest.approx(max(abs(roots)), rel=1e-12)
