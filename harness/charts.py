@@ -131,3 +131,34 @@ def stability_charts(limits, cases, tables: dict, out: Path) -> list[Path]:
     ax.set_title("Stability limits per method and case")
     figure.tight_layout()
     return paths + save(figure, out, "stability-limits")
+
+
+def coupling_chart(points, out: Path) -> list[Path]:
+    """Coupling error against the communication step, against fmi2DoStep calls and against seconds.
+    (The CSV also has the right-hand-side evaluations: with the scene's fixed internal step they
+    change only with the passes a step takes, not with H.)"""
+    configurations = list(dict.fromkeys(p.configuration for p in points))
+    figure, axes = plt.subplots(1, 3, figsize=(18, 5.5))
+    colours = plt.get_cmap("tab10")
+    for k, name in enumerate(configurations):
+        mine = sorted((p for p in points if p.configuration == name and math.isfinite(p.error)), key=lambda p: p.step)
+        style = dict(marker="o", color=colours(k), label=name, linestyle="--" if "iterated" in name else "-")
+        axes[0].plot([p.step for p in mine], [p.error for p in mine], **style)
+        axes[1].plot([p.do_steps for p in mine], [p.error for p in mine], **style)
+        axes[2].plot([p.seconds for p in mine], [p.error for p in mine], **style)
+    steps = sorted({p.step for p in points})
+    for order, anchor in ((1, 0.5), (2, 0.01)):
+        axes[0].plot(steps, [anchor * (h / steps[-1]) ** order for h in steps], color="grey", linewidth=0.8,
+                     linestyle=":", label=f"slope {order}")
+    for ax, label in zip(axes, ("communication step H [s]", "fmi2DoStep calls (all components)",
+                                "seconds (median of repeats)")):
+        ax.set_xscale("log")
+        ax.set_yscale("log")
+        ax.xaxis.set_minor_formatter(matplotlib.ticker.NullFormatter())
+        ax.grid(True, alpha=0.3)
+        ax.set_xlabel(label)
+        ax.set_ylabel("largest bob position error [m]")
+    axes[0].legend(fontsize=8)
+    figure.suptitle("Coupled pendulums: master configurations against a monolithic reference")
+    figure.tight_layout()
+    return save(figure, out, "coupling")

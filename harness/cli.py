@@ -146,6 +146,19 @@ def command_chart(args: argparse.Namespace) -> int:
         print(f"{len(limits)} limits measured; largest deviation from the prediction in the linear cases: "
               f"{worst.measured_limit / worst.theory_limit - 1:+.2%} ({worst.object}, {worst.method}, "
               f"d = {worst.damping:.3g}/s)")
+    elif args.kind == "coupling":
+        from harness.charts import coupling_chart
+        from harness.coupling import coupling_sweep, write_csv
+        from harness.fmus import PROJECT_ROOT
+        from harness.system import load_system
+        system = load_system(args.system or PROJECT_ROOT / "scenes" / "coupled_pendulums.json")
+        points = coupling_sweep(system, stop=args.stop, repeats=args.repeats, scheduler=args.scheduler,
+                                workers=args.workers)
+        write_csv(points, out / "coupling.csv")
+        written = [out / "coupling.csv", *coupling_chart(points, out)]
+        for name in dict.fromkeys(p.configuration for p in points):
+            mine = [p for p in points if p.configuration == name]
+            print(f"{name:32s} " + "  ".join(f"H={p.step:g}: {p.error:.1e} m" for p in mine))
     print("wrote " + ", ".join(str(p) for p in written))
     return 0
 
@@ -187,10 +200,12 @@ def build_parser() -> argparse.ArgumentParser:
     p.set_defaults(run=command_validate)
 
     p = sub.add_parser("chart", help="sweeps and their charts: work-precision, stability, coupling")
-    p.add_argument("kind", choices=["work-precision", "stability"], help="which sweep")
+    p.add_argument("kind", choices=["work-precision", "stability", "coupling"], help="which sweep")
     p.add_argument("--out", default="charts", help="output folder for the CSV and the PNG/SVG charts")
     p.add_argument("--objects", nargs="+", metavar="NAME", help="pendulums to include (default: all three)")
     p.add_argument("--repeats", type=int, default=3, help="timed repeats per point; the median is kept (default 3)")
+    p.add_argument("--system", help="coupling: the system (default scenes/coupled_pendulums.json)")
+    p.add_argument("--stop", type=float, help="coupling: simulated time [s] (default: the system's)")
     p.add_argument("--full", action="store_true", help="stability: the full atlas (19 damping ratios instead of 8)")
     p.add_argument("--workers", type=int, help="parallel worker processes (default: all local cores)")
     p.add_argument("--scheduler", metavar="ADDRESS",

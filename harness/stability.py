@@ -20,16 +20,16 @@ Cases (`release` is the start amplitude, rad or m):
 """
 from __future__ import annotations
 
-import csv
 import json
 import math
 import subprocess
-from dataclasses import asdict, dataclass, field
+from dataclasses import dataclass, field
 from functools import lru_cache
 from pathlib import Path
 
 import numpy as np
 
+from harness.records import read_records, write_records
 from harness.sweep import run_sweep
 
 PERIODS = 100
@@ -163,7 +163,7 @@ class Limit:
     measured_limit: float
     theory_limit: float
     release: float
-    runs: int  # FMU runs the scan took
+    runs: int = 0  # FMU runs the scan took (not written to the CSV)
 
     @staticmethod
     def columns() -> list[str]:
@@ -254,17 +254,12 @@ def atlas(fmu_dir: Path, methods=FIXED_STEP, full: bool = False, scheduler: str 
 
 
 def write_csv(limits: list[Limit], path: Path) -> None:
-    with open(path, "w", newline="") as handle:
-        writer = csv.DictWriter(handle, fieldnames=Limit.columns(), extrasaction="ignore")
-        writer.writeheader()
-        for limit in limits:
-            writer.writerow({k: ("" if isinstance(v, float) and math.isnan(v) else v) for k, v in asdict(limit).items()})
+    write_records(limits, path, Limit.columns())
 
 
 def read_csv(path: Path) -> list[Limit]:
-    with open(path, newline="") as handle:
-        return [Limit(r["object"], r["method"], float(r["damping"]), float(r["measured_limit"]),
-                      float(r["theory_limit"] or "nan"), float(r["release"]), 0) for r in csv.DictReader(handle)]
+    return read_records(path, Limit)
+
 
 
 def growth_on_grid(table: dict, z: np.ndarray) -> np.ndarray:

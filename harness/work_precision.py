@@ -12,7 +12,7 @@ from __future__ import annotations
 import math
 import statistics
 import time
-from dataclasses import asdict, dataclass, fields
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -21,6 +21,7 @@ from harness.equations import OUTER_MASS, Pendulum
 from harness.fmu_instance import FmuInstance
 from harness.reference import Reference, tight_reference
 from harness.simulation import communication_grid, run_initialized
+from harness.records import columns_of, read_records, write_records
 from harness.sweep import run_sweep
 
 STOP, STEP = 10.0, 0.01
@@ -49,10 +50,6 @@ class Point:
     error: float  # metres; inf when the run stopped early (fmi2Discard)
     rhs_evals: int
     seconds: float
-
-    @staticmethod
-    def columns() -> list[str]:
-        return [f.name for f in fields(Point)]
 
 
 @dataclass(frozen=True)
@@ -189,16 +186,8 @@ def pareto_front(points: list[Point], cost: str = "rhs_evals") -> list[Point]:
 
 
 def write_csv(points: list[Point], path: Path) -> None:
-    import csv
-    with open(path, "w", newline="") as handle:
-        writer = csv.DictWriter(handle, fieldnames=Point.columns())
-        writer.writeheader()
-        for p in points:
-            writer.writerow({k: ("" if isinstance(v, float) and math.isnan(v) else v) for k, v in asdict(p).items()})
+    write_records(points, path, columns_of(Point))
 
 
 def read_csv(path: Path) -> list[Point]:
-    import csv
-    with open(path, newline="") as handle:
-        return [Point(r["object"], r["method"], float(r["h"] or "nan"), float(r["tol"] or "nan"), float(r["error"]),
-                      int(r["rhs_evals"]), float(r["seconds"])) for r in csv.DictReader(handle)]
+    return read_records(path, Point)

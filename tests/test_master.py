@@ -6,8 +6,8 @@ import dataclasses
 
 import numpy as np
 import pytest
-from scipy.integrate import solve_ivp
 
+from harness.coupling import CoupledPendulums
 from harness.fmus import PROJECT_ROOT, build_dir
 from harness.master import MasterOptions, run_system
 from harness.system import load_system
@@ -19,27 +19,13 @@ T = 3.0
 
 
 def monolithic(t_eval: np.ndarray, c: float = 0.0) -> dict[str, np.ndarray]:
-    def positions(y):
-        pa = np.array([L * np.sin(y[0]), -L * np.cos(y[0])])
-        pb = np.array([GAP + L * np.sin(y[2]), -L * np.cos(y[2])])
-        va = L * y[1] * np.array([np.cos(y[0]), np.sin(y[0])])
-        vb = L * y[3] * np.array([np.cos(y[2]), np.sin(y[2])])
-        return pa, pb, va, vb
-
-    def rhs(t, y):
-        pa, pb, va, vb = positions(y)
-        d = pb - pa
-        r = np.hypot(*d)
-        e = d / r
-        fa = (K * (r - L0) + c * (vb - va) @ e) * e
-        acc_a = -G / L * np.sin(y[0]) + (fa[0] * np.cos(y[0]) + fa[1] * np.sin(y[0])) / (M * L)
-        acc_b = -G / L * np.sin(y[2]) - (fa[0] * np.cos(y[2]) + fa[1] * np.sin(y[2])) / (M * L)
-        return [y[1], acc_a, y[3], acc_b]
-
-    sol = solve_ivp(rhs, (t_eval[0], t_eval[-1]), [0.5, 0.0, 0.0, 0.0], method="DOP853", rtol=1e-12, atol=1e-12,
-                    t_eval=t_eval)
-    return {"left.x": L * np.sin(sol.y[0]), "left.y": -L * np.cos(sol.y[0]),
-            "right.x": GAP + L * np.sin(sol.y[2]), "right.y": -L * np.cos(sol.y[2])}
+    """The library's monolithic reference (harness.coupling), spring damping c."""
+    system = load_system(SCENE)
+    spring = next(x for x in system.components if x.name == "spring")
+    damped = dataclasses.replace(system, components=[dataclasses.replace(spring, start={**spring.start, "c": c})
+                                                     if x is spring else x for x in system.components])
+    left, right = CoupledPendulums.from_system(damped).reference(t_eval)
+    return {"left.x": left[:, 0], "left.y": left[:, 1], "right.x": right[:, 0], "right.y": right[:, 1]}
 
 
 def position_error(result) -> float:
