@@ -94,6 +94,8 @@ class RawCalls:
         self.component = ctypes.c_void_p(component)
         self.get_real = _GETTER(address(dll.fmi2GetReal))
         self.get_integer = _GETTER(address(dll.fmi2GetInteger))
+        self.set_real = _GETTER(address(dll.fmi2SetReal))  # same shape: (component, vr[], n, value[])
+        self.set_integer = _GETTER(address(dll.fmi2SetInteger))
         self.do_step = _STEPPER(address(dll.fmi2DoStep))
 
 
@@ -154,13 +156,14 @@ class FmuInstance:
     def set(self, **values) -> int:
         """Sets variables by name; returns the worst fmi2Status."""
         worst = OK
+        raw = self.raw
         for name, value in values.items():
             kind, encoded = self._encode(name, value)
-            vr = (ctypes.c_uint * 1)(self.reference(name))
+            vr = ctypes.c_uint(self.reference(name))
             if kind == "Real":
-                status = self.call("fmi2SetReal", vr, 1, (ctypes.c_double * 1)(encoded))
+                status = raw.set_real(raw.component, ctypes.byref(vr), 1, ctypes.byref(ctypes.c_double(encoded)))
             else:
-                status = self.call("fmi2SetInteger", vr, 1, (ctypes.c_int * 1)(encoded))
+                status = raw.set_integer(raw.component, ctypes.byref(vr), 1, ctypes.byref(ctypes.c_int(encoded)))
             worst = max(worst, status)
         return worst
 
@@ -193,7 +196,7 @@ class FmuInstance:
         """A raw fmi2 call by name, returning its status (fmpy's wrappers raise instead)."""
         # As c_void_p: for a function fmpy did not declare (a CS function on an ME instance) ctypes
         # would otherwise pass the handle as a 32-bit int.
-        return getattr(self.fmu.dll, function)(ctypes.c_void_p(self.fmu.component), *args)
+        return getattr(self.fmu.dll, function)(self.raw.component, *args)
 
     # ---- life cycle
     def initialize(self, start_time: float = 0.0, **start_values) -> None:

@@ -50,7 +50,8 @@ def _dask_map(function, items, scheduler: str, workers: int | None):
             return client.gather(client.map(function, items, pure=False))
     try:
         client = Client(scheduler, timeout="5s")
-    except OSError as error:
-        raise HarnessError(f"--scheduler {scheduler}: cannot connect ({error})") from None
+    except Exception as error:  # refused, timed out, or something that is not a Dask scheduler answered
+        detail = (str(error).strip().splitlines() or [type(error).__name__])[0]
+        raise HarnessError(f"--scheduler {scheduler}: cannot connect ({detail})") from None
     with client:
         return client.gather(client.map(function, items, pure=False))
