@@ -107,6 +107,7 @@ class FmuInstance:
         self.path = Path(fmu)
         self.fmu = None
         self._raw = None
+        self._items: dict[str, dict[str, int]] = {}
         self.model_description = read_fmi2_description(self.path)
         self.unzipdir = unzipdir or extract(str(self.path))
         self.variables = {v.name: v for v in self.model_description.modelVariables}
@@ -138,13 +139,19 @@ class FmuInstance:
         except KeyError:
             raise HarnessError(f"{self.path.name} has no variable {name!r}") from None
 
+    def _enumeration_items(self, variable) -> dict[str, int]:
+        items = self._items.get(variable.name)
+        if items is None:
+            items = self._items[variable.name] = {item.name: int(item.value) for item in variable.declaredType.items}
+        return items
+
     def _encode(self, name: str, value) -> tuple[str, int | float]:
         variable = self.variables.get(name)
         if variable is None:
             raise HarnessError(f"{self.path.name} has no variable {name!r}")
         if variable.type == "Enumeration":
             if isinstance(value, str):
-                items = {item.name: item.value for item in variable.declaredType.items}
+                items = self._enumeration_items(variable)
                 if value not in items:
                     raise HarnessError(f"{name} = {value!r} is not one of {', '.join(items)}")
                 value = items[value]

@@ -51,51 +51,69 @@ def simulate(fmu: str | Path, stop_time: float, step: float = 0.01, start_time: 
 
 def run_initialized(instance: FmuInstance, grid: np.ndarray, outputs: list[str]) -> SimulationResult:
     """Steps an initialized instance over the grid, recording the outputs at every point (Real
-    columns first). fmi2GetReal writes straight into the result rows and the functions are bound
-    once: this is also the loop the benchmarks time."""
-    name = instance.path.name
-    real_names = [n for n in outputs if instance.variables[n].type == "Real"]
-    integer_names = [n for n in outputs if n not in real_names]
-    columns = ["time"] + real_names + integer_names
-    n_real, n_int = len(real_names), len(integer_names)
-    real_vrs = (ctypes.c_uint * n_real)(*[instance.reference(n) for n in real_names])
-    integer_vrs = (ctypes.c_uint * n_int)(*[instance.reference(n) for n in integer_names])
-    reals = np.zeros((len(grid), max(n_real, 1)))
-    integers = np.zeros((len(grid), max(n_int, 1)), dtype=np.intc)
-    raw = instance.raw
-    component, get_real, get_integer, do_step = raw.component, raw.get_real, raw.get_integer, raw.do_step
-    real_row, int_row = reals.strides[0], integers.strides[0]
-    real_base, int_base = reals.__array_interface__["data"][0], integers.__array_interface__["data"][0]
-    discarded_at = None
-    rows = 0
+    columns first)."""
+    return Recorder(instance, grid, outputs).run()
 
-    def record() -> None:
-        status = get_real(component, real_vrs, n_real, real_base + rows * real_row)
-        if n_int:
-            status = max(status, get_integer(component, integer_vrs, n_int, int_base + rows * int_row))
-        if status >= ERROR:
-            raise HarnessError(f"{name}: reading outputs returned {STATUS_NAMES[status]}: {instance.last_message()}")
 
-    times = grid.tolist()
-    last = len(times) - 1
-    for i, t in enumerate(times):
-        record()
-        rows += 1
-        if i == last:
-            break
-        status = do_step(component, t, times[i + 1] - t, 1)
-        if status == DISCARD:
-            discarded_at = instance.last_successful_time()
-            record()
-            rows += 1
-            break
-        if status >= ERROR:
-            raise HarnessError(f"{name}: fmi2DoStep at t = {t} returned {STATUS_NAMES[status]}: "
-                               f"{instance.last_message()}")
-    table = np.empty((rows, len(columns)))
-    table[:, 0] = grid[:rows]
-    if discarded_at is not None:
-        table[-1, 0] = discarded_at
-    table[:, 1:1 + n_real] = reals[:rows, :n_real]
-    table[:, 1 + n_real:] = integers[:rows, :n_int]
-    return SimulationResult(columns, table, instance.path.stem, discarded_at, [str(m) for m in instance.log.messages])
+class Recorder:
+    """The stepping loop of one instance over one grid, prepared once and run as often as needed
+    (after each fmi2Reset and initialization): fmi2GetReal writes straight into the rows of a
+    preallocated table through the instance's own prototypes. This is the loop the sweeps and the
+    benchmarks time."""
+
+    def __init__(self, instance: FmuInstance, grid: np.ndarray, outputs: list[str]):
+        self.instance = instance
+        real_names = [n for n in outputs if instance.variables[n].type == "Real"]
+        integer_names = [n for n in outputs if n not in real_names]
+        self.columns = ["time"] + real_names + integer_names
+        self.n_real, self.n_int = len(real_names), len(integer_names)
+        self.real_vrs = (ctypes.c_uint * self.n_real)(*[instance.reference(n) for n in real_names])
+        self.integer_vrs = (ctypes.c_uint * self.n_int)(*[instance.reference(n) for n in integer_names])
+        self.grid = np.asarray(grid, dtype=float)
+        self.times = self.grid.tolist()
+        self.reals = np.zeros((len(grid), max(self.n_real, 1)))
+        self.integers = np.zeros((len(grid), max(self.n_int, 1)), dtype=np.intc)
+        # row addresses, computed once
+        self.real_rows = (self.reals.__array_interface__["data"][0] + self.reals.strides[0] * np.arange(len(grid))).tolist()
+        self.int_rows = (self.integers.__array_interface__["data"][0]
+                         + self.integers.strides[0] * np.arange(len(grid))).tolist()
+
+    def run(self) -> SimulationResult:
+        instance = self.instance
+        name = instance.path.name
+        raw = instance.raw
+        component, get_real, get_integer, do_step = raw.component, raw.get_real, raw.get_integer, raw.do_step
+        real_vrs, integer_vrs, n_real, n_int = self.real_vrs, self.integer_vrs, self.n_real, self.n_int
+        real_rows, int_rows, times = self.real_rows, self.int_rows, self.times
+        discarded_at = None
+
+        def record(row: int) -> None:
+            status = get_real(component, real_vrs, n_real, real_rows[row])
+            if n_int:
+                status = max(status, get_integer(component, integer_vrs, n_int, int_rows[row]))
+            if status >= ERROR:
+                raise HarnessError(f"{name}: reading outputs returned {STATUS_NAMES[status]}: "
+                                   f"{instance.last_message()}")
+
+        rows = len(times)
+        record(0)
+        for i in range(1, len(times)):
+            t = times[i - 1]
+            status = do_step(component, t, times[i] - t, 1)
+            if status == DISCARD:
+                discarded_at = instance.last_successful_time()
+                record(i)
+                rows = i + 1
+                break
+            if status >= ERROR:
+                raise HarnessError(f"{name}: fmi2DoStep at t = {t} returned {STATUS_NAMES[status]}: "
+                                   f"{instance.last_message()}")
+            record(i)
+        table = np.empty((rows, len(self.columns)))
+        table[:, 0] = self.grid[:rows]
+        if discarded_at is not None:
+            table[-1, 0] = discarded_at
+        table[:, 1:1 + n_real] = self.reals[:rows, :n_real]
+        table[:, 1 + n_real:] = self.integers[:rows, :n_int]
+        return SimulationResult(self.columns, table, instance.path.stem, discarded_at,
+                                [str(m) for m in instance.log.messages])

@@ -20,7 +20,7 @@ import numpy as np
 from harness.equations import OUTER_MASS, Pendulum
 from harness.fmu_instance import FmuInstance
 from harness.reference import Reference, tight_reference
-from harness.simulation import communication_grid, run_initialized
+from harness.simulation import Recorder, communication_grid
 from harness.records import columns_of, read_records, write_records
 from harness.sweep import run_sweep
 
@@ -108,10 +108,12 @@ def _fmu_point(task: Task, reference: Reference) -> Point:
     start = {"solver": task.method}
     start.update({"h": task.h} if task.method != "rkf45" else {"tol": task.tol})
     with FmuInstance(task.fmu, name=task.object) as instance:
+        recorder = Recorder(instance, grid, list(OUTER_MASS[task.object]))
+
         def run():
             instance._require(instance.call("fmi2Reset"), "fmi2Reset")
             instance.initialize(0.0, **start)
-            return run_initialized(instance, grid, list(OUTER_MASS[task.object]))
+            return recorder.run()
         seconds, result = _median_seconds(run, task.repeats)
         evaluations = int(instance.get("n_rhs")[0])
     error = math.inf if result.discarded_at is not None else position_error(result.values[:, 1:3], reference)
