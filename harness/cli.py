@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 import argparse
+import math
 import sys
 from pathlib import Path
 
@@ -45,21 +46,10 @@ def command_simulate(args: argparse.Namespace) -> int:
 
 
 def command_demo(args: argparse.Namespace) -> int:
-    from harness.fmus import build_fmus
-    from harness.thesis_scene import THESIS_SCENE, run_thesis_scene
-    build_fmus()
-    out = Path(args.out)
-    results = run_thesis_scene(out, duration=args.duration)
-    print(f"thesis scene, {args.duration} s, rk4 at the thesis's step widths:")
-    for obj in THESIS_SCENE:
-        result = results[obj.name]
-        energy = result["E"]
-        drift = abs(energy[-1] - energy[0]) / max(abs(energy[0]), float(result["E_kin"].max()))
-        status = "ok" if result.discarded_at is None else f"discard at t = {result.discarded_at:.3f}"
-        print(f"  {obj.name:12s} h = {obj.step:<6} rhs evaluations {int(result['n_rhs'][-1]):7d}  "
-              f"energy drift / max E_kin {drift:.2e}  {status}")
-    print(f"wrote CSV files and trace pictures to {out}/ (thesis_scene_traces.png)")
-    return 0
+    from harness.report import run_demo
+    report, index = run_demo(Path(args.out), args.duration)
+    print(f"wrote {index}: {'all verdicts pass' if report.passed else 'some verdicts fail'}")
+    return 0 if report.passed else 1
 
 
 def command_run(args: argparse.Namespace) -> int:
@@ -163,6 +153,42 @@ def command_chart(args: argparse.Namespace) -> int:
     return 0
 
 
+def command_plan(args: argparse.Namespace) -> int:
+    from harness.fmus import build_fmus
+    from harness.planner import plan_scene, write_plan_csv
+    from harness.system import load_system
+    build_fmus()
+    system = load_system(args.scene)
+    tolerance = args.tolerance
+    if args.pixels is not None:
+        system.accuracy = {"pixels": args.pixels}
+        tolerance = system.tolerance()
+    plans = plan_scene(system, tolerance, args.duration, args.scheduler, args.workers)
+    tolerance = plans[0].tolerance
+    duration = args.duration or system.stop
+    print(f"{system.name}: {duration:g} s, tolerance {tolerance:.3g} m at every frame "
+          f"({1 / system.frame_step():g} per second)")
+    print(f"{'object':14s} {'plan':28s} {'predicted':>10s} {'verified':>10s} {'cost':>7s} | "
+          f"{'default rk4 h=0.008':>20s} {'cost':>7s}  verdict")
+    for p in plans:
+        choice = "linear, closed form" if p.model == "linear" else f"{p.method}, h = {p.h:.4g}"
+        if math.isfinite(p.communication_step):
+            choice += f", H = {p.communication_step:g}"
+        default_ok = p.default_error <= tolerance
+        verdict = (f"{p.default_cost / p.cost:.1f}x cheaper than the default" if default_ok
+                   else "the default misses the tolerance")
+        print(f"{p.object:14s} {choice:28s} {p.predicted_error:10.2e} {p.verified_error:10.2e} {p.cost:7d} | "
+              f"{p.default_error:20.2e} {p.default_cost:7d}  {verdict}")
+    total, default_total = sum(p.cost for p in plans), sum(p.default_cost for p in plans)
+    print(f"total cost {total} evaluations against the default's {default_total} ({default_total / total:.2f}x)")
+    if args.out:
+        out = Path(args.out)
+        out.parent.mkdir(parents=True, exist_ok=True)
+        write_plan_csv(plans, out)
+        print(f"wrote {out}")
+    return 0
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog="harness", description="Pendulum FMUs: simulate, couple, validate, chart.")
     sub = parser.add_subparsers(dest="command", required=True)
@@ -212,9 +238,19 @@ def build_parser() -> argparse.ArgumentParser:
                    help="run the sweep on a Dask cluster: 'local' starts one here, HOST:PORT uses a running one")
     p.set_defaults(run=command_chart)
 
-    p = sub.add_parser("demo", help="the main job: build the FMUs, run the thesis scene, write CSV and traces")
+    p = sub.add_parser("plan", help="choose model, method and step per object for a scene's accuracy")
+    p.add_argument("scene", help="a scene file (.json) with objects, duration and accuracy")
+    p.add_argument("--tolerance", type=float, help="position tolerance [m] (default: the scene's accuracy)")
+    p.add_argument("--pixels", type=float, help="tolerance in pixels, through the scene camera's scale")
+    p.add_argument("--duration", type=float, help="scene duration [s] (default: the scene's stop)")
+    p.add_argument("--out", help="CSV file for the plan")
+    p.add_argument("--workers", type=int, help="parallel worker processes (default: all local cores)")
+    p.add_argument("--scheduler", metavar="ADDRESS", help="plan on a Dask cluster ('local' or HOST:PORT)")
+    p.set_defaults(run=command_plan)
+
+    p = sub.add_parser("demo", help="the main job: thesis scene, coupled scene, plan, validation, charts -> DIR/index.html")
     p.add_argument("--out", default="out", help="output folder (default out/)")
-    p.add_argument("--duration", type=float, default=20.0, help="simulated time [s] (default 20)")
+    p.add_argument("--duration", type=float, help="simulated time [s] (default: the scene's, 20)")
     p.set_defaults(run=command_demo)
     return parser
 

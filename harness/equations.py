@@ -41,7 +41,7 @@ class Pendulum:
         name = description.coSimulation.modelIdentifier
         values = {v.name: float(v.start) for v in description.modelVariables
                   if v.type == "Real" and v.start is not None}
-        values.update(overrides or {})
+        values.update({k: float(v) for k, v in (overrides or {}).items() if not isinstance(v, str)})
         return cls(name, values, [values[s] for s in STATES[name]], lib)
 
     def convert(self, dtype) -> "Pendulum":
@@ -80,14 +80,20 @@ class Pendulum:
 
     def outer_mass(self, states: np.ndarray) -> np.ndarray:
         """Positions (n, 2) of the outer mass for states (n, n_states)."""
+        return self.points(states)[OUTER_MASS[self.name]]
+
+    def points(self, states: np.ndarray) -> dict[tuple[str, str], np.ndarray]:
+        """Positions (n, 2) of every point the FMU reports, keyed by its output columns."""
         p = self.parameters
         s = np.asarray(states)
         if self.name == "SimplePendulum":
-            reach = [(p["L"], s[:, 0])]
+            chain = [(("x", "y"), p["L"], s[:, 0])]
         elif self.name == "DoublePendulum":
-            reach = [(p["l1"], s[:, 0]), (p["l2"], s[:, 1])]
+            chain = [(("x1", "y1"), p["l1"], s[:, 0]), (("x2", "y2"), p["l2"], s[:, 1])]
         else:
-            reach = [(p["l0"] + s[:, 1], s[:, 0])]
-        x = p["anchor_x"] + sum(length * np.sin(angle) for length, angle in reach)
-        y = p["anchor_y"] - sum(length * np.cos(angle) for length, angle in reach)
-        return np.column_stack([x, y])
+            chain = [(("x", "y"), p["l0"] + s[:, 1], s[:, 0])]
+        x, y, out = p["anchor_x"], p["anchor_y"], {}
+        for columns, length, angle in chain:
+            x, y = x + length * np.sin(angle), y - length * np.cos(angle)
+            out[columns] = np.column_stack([x * np.ones(len(s)), y * np.ones(len(s))])
+        return out

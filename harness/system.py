@@ -58,6 +58,26 @@ class System:
     connections: list[Connection]
     stop: float | None = None
     step: float | None = None
+    # a scene's visual needs (scene files only): {"position": metres} or {"pixels": n}, and the camera
+    accuracy: dict = field(default_factory=dict)
+    camera: dict = field(default_factory=dict)  # {"scale": pixels per metre, "frame_rate": frames per second}
+    traces: dict = field(default_factory=dict)  # component -> [[x column, y column], ...] to draw
+
+    def tolerance(self) -> float | None:
+        """The position tolerance in metres the scene asks for (pixels through the camera's scale)."""
+        if "position" in self.accuracy:
+            return float(self.accuracy["position"])
+        if "pixels" in self.accuracy:
+            scale = self.camera.get("scale")
+            if not scale or scale <= 0:
+                raise HarnessError(f"{self.name}: an accuracy in pixels needs the camera's \"scale\" (pixels per metre)")
+            return float(self.accuracy["pixels"]) / float(scale)
+        return None
+
+    def frame_step(self) -> float | None:
+        """The interval at which the scene is looked at: 1 / frame rate, else the communication step."""
+        rate = self.camera.get("frame_rate")
+        return 1.0 / float(rate) if rate else self.step
 
     def component(self, name: str) -> Component:
         for c in self.components:
@@ -89,18 +109,24 @@ def load_scene_file(path: Path) -> System:
         raise HarnessError(f"{path}: cannot read the scene file ({error})") from None
     if not isinstance(data, dict) or not isinstance(data.get("components"), dict):
         raise HarnessError(f"{path}: a scene file needs a \"components\" object")
-    components = []
+    components, traces = [], {}
     for name, spec in data["components"].items():
         if not isinstance(spec, dict) or "fmu" not in spec:
             raise HarnessError(f"{path}: component {name!r} needs an \"fmu\"")
         components.append(Component(name, _fmu_path(spec["fmu"], path.parent), dict(spec.get("start", {}))))
+        if "traces" in spec:
+            traces[name] = [tuple(pair) for pair in spec["traces"]]
     connections = []
     for pair in data.get("connections", []):
         if not (isinstance(pair, list) and len(pair) == 2):
             raise HarnessError(f"{path}: a connection is a pair [\"A.output\", \"B.input\"], got {pair!r}")
         (source, output), (target, input_) = _split(pair[0], str(path)), _split(pair[1], str(path))
         connections.append(Connection(source, output, target, input_))
-    return System(data.get("name", path.stem), components, connections, data.get("stop"), data.get("step"))
+    for key in ("accuracy", "camera"):
+        if not isinstance(data.get(key, {}), dict):
+            raise HarnessError(f"{path}: \"{key}\" must be an object")
+    return System(data.get("name", path.stem), components, connections, data.get("stop"), data.get("step"),
+                  dict(data.get("accuracy", {})), dict(data.get("camera", {})), traces)
 
 
 def _ssp_archive(path: Path) -> tuple[io.BytesIO | Path, Path]:

@@ -25,7 +25,7 @@ def draw_traces(panels: list[tuple[str, SimulationResult, list[tuple[str, str]],
         ax.grid(alpha=0.3)
         ax.set_xlabel("x [m]")
         ax.set_ylabel("y [m]")
-        if result.discarded_at is not None:
+        if getattr(result, "discarded_at", None) is not None:
             ax.text(0.02, 0.02, f"stopped: discard at t = {result.discarded_at:.3f} s", transform=ax.transAxes,
                     color="red", fontsize=8)
     figure.tight_layout()

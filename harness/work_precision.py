@@ -63,18 +63,21 @@ class Task:
     repeats: int
 
 
-def settings(objects=PENDULUMS, repeats: int = 3, fmu_dir: Path | None = None) -> list[Task]:
+def settings(objects=PENDULUMS, repeats: int = 3, fmu_dir: Path | None = None, quick: bool = False) -> list[Task]:
+    """Every point of the chart; quick: every other step and tolerance (a chart in a few seconds)."""
     from harness.fmus import build_dir
     folder = Path(fmu_dir) if fmu_dir else build_dir() / "fmus"
     nan = math.nan
+    thin = (lambda values: values[::2]) if quick else (lambda values: values)  # noqa: E731
     tasks = []
     for name in objects:
         fmu = str(folder / f"{name}.fmu")
         for method in FIXED_STEP:
-            tasks += [Task(name, method, STEP / k, nan, fmu, repeats) for k in SUBSTEPS[ORDER[method]]]
-        tasks += [Task(name, "rkf45", nan, tol, fmu, repeats) for tol in RKF45_TOLERANCES]
-        tasks += [Task(name, f"scipy-{m}", nan, tol, fmu, repeats) for m in SCIPY_METHODS for tol in PEER_TOLERANCES]
-        tasks += [Task(name, "fmpy-CVode", nan, tol, fmu, repeats) for tol in PEER_TOLERANCES]
+            tasks += [Task(name, method, STEP / k, nan, fmu, repeats) for k in thin(SUBSTEPS[ORDER[method]])]
+        tasks += [Task(name, "rkf45", nan, tol, fmu, repeats) for tol in thin(RKF45_TOLERANCES)]
+        tasks += [Task(name, f"scipy-{m}", nan, tol, fmu, repeats) for m in SCIPY_METHODS
+                  for tol in thin(PEER_TOLERANCES)]
+        tasks += [Task(name, "fmpy-CVode", nan, tol, fmu, repeats) for tol in thin(PEER_TOLERANCES)]
     return tasks
 
 

@@ -1,0 +1,268 @@
+"""The scene planner: per object, the cheapest model, method and internal step that still keeps every
+visible point within the scene's position tolerance at every frame, for the scene's duration.
+
+How each candidate's error is predicted (before it is trusted):
+  * SimplePendulum `linear` (closed form): its difference from the nonlinear motion is computed
+    outright against the reference (the exact elliptic solution when undamped from rest);
+  * a fixed-step method at step h: step doubling on the frame grid, D = max |y_h - y_(h/2)|, error
+    ~ D 2^p / (2^p - 1); trusted when a third run at h/4 shows the method's order (D(h)/D(h/2)
+    within a factor 2.5 of 2^p) or D is below a hundredth of the tolerance;
+  * a candidate is admitted only when its predicted error is at most half the tolerance and it is
+    stable over the scene by the stability atlas's criterion (growth^(2N) <= 1.5 on the eigenvalues
+    of the object linearized at rest, N = duration / h).
+The cheapest admitted candidate (right-hand-side evaluations, or closed-form evaluations, over the
+scene) is run against a tight reference (`reference.tight_reference`: exact, or long double with a
+step-halving estimate below a hundredth of the tolerance): that is the verified error. Should it
+exceed the tolerance, the next cheapest candidate is verified instead.
+
+Objects joined by connections are planned together: one method and step ratio for all pendulums and
+a communication step H (Gauss-Seidel, linear extrapolation), predicted by doubling H and h together
+and verified against the monolithic reference (`coupling.CoupledPendulums`).
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, replace
+from pathlib import Path
+
+import numpy as np
+
+from harness.equations import Pendulum
+from harness.errors import HarnessError
+from harness.fmu_instance import FmuInstance, read_fmi2_description
+from harness.reference import tight_reference
+from harness.simulation import Recorder, communication_grid
+from harness.stability import linearized_eigenvalues, method_tables, stable_over
+from harness.sweep import run_sweep
+from harness.system import Component, System
+
+ORDER = {"euler": 1, "midpoint": 2, "heun": 2, "rk3": 3, "rk4": 4, "nystrom5": 5, "ab2": 2, "ab3": 3, "ab4": 4,
+         "ab5": 5, "ab6": 6}
+STAGES = {"euler": 1, "midpoint": 2, "heun": 2, "rk3": 3, "rk4": 4, "nystrom5": 6}
+SUBSTEPS = (1, 2, 3, 4, 5, 6, 8, 10, 12, 16, 20, 25, 32, 40, 50, 64, 80, 100, 128, 160, 200, 256, 320, 400)
+DEFAULT = ("rk4", 0.008)
+SAFETY = 0.5
+
+
+@dataclass
+class ObjectPlan:
+    object: str
+    kind: str  # the FMU's model identifier
+    model: str  # "nonlinear", or "linear" (SimplePendulum's closed form)
+    method: str  # "closed form" for the linear model
+    h: float  # internal step [s] (the frame interval for the closed form)
+    predicted_error: float  # metres
+    verified_error: float  # metres, against the tight reference
+    cost: int  # evaluations over the scene (right-hand side, or closed form)
+    default_error: float  # rk4, h = 0.008, verified the same way
+    default_cost: int
+    how: str  # how the error was predicted
+    tolerance: float
+    communication_step: float = math.nan  # coupled objects only
+
+
+@dataclass
+class Candidate:
+    model: str
+    method: str
+    h: float
+    predicted: float
+    cost: int
+    how: str
+
+
+class ObjectRunner:
+    """Runs one object (an FMU with the scene's start values) on the frame grid."""
+
+    def __init__(self, component: Component, duration: float, frame: float, columns: list[tuple[str, str]]):
+        self.component = component
+        self.instance = FmuInstance(component.fmu, name=component.name)
+        self.grid = communication_grid(0.0, duration, frame)
+        self.columns = columns
+        self.recorder = Recorder(self.instance, self.grid, [c for pair in columns for c in pair])
+
+    def run(self, overrides: dict) -> tuple[np.ndarray, int]:
+        """Positions (frames, points, 2) and the evaluations spent; inf positions after a discard."""
+        instance = self.instance
+        instance._require(instance.call("fmi2Reset"), "fmi2Reset")
+        instance.initialize(0.0, **{**self.component.start, **overrides})
+        result = self.recorder.run()
+        positions = np.full((len(self.grid), len(self.columns), 2), np.inf)
+        rows = len(result.values) if result.discarded_at is None else len(result.values) - 1
+        for k, (x, y) in enumerate(self.columns):
+            positions[:rows, k, 0] = result[x][:rows]
+            positions[:rows, k, 1] = result[y][:rows]
+        evaluations = int(instance.get("n_rhs")[0])
+        if overrides.get("model") == "linear":
+            evaluations = int(instance.get("n_steps")[0])
+        return positions, evaluations
+
+    def close(self) -> None:
+        self.instance.free()
+
+
+def largest_distance(a: np.ndarray, b: np.ndarray) -> float:
+    d = np.hypot(*(a - b).transpose(2, 0, 1))
+    return float(np.max(d)) if np.all(np.isfinite(d)) else math.inf
+
+
+def reference_positions(component: Component, kind: str, duration: float, frame: float,
+                        columns: list[tuple[str, str]], tolerance: float) -> tuple[np.ndarray, float]:
+    """The tight reference's visible points (frames, points, 2) and its estimated error."""
+    pendulum = Pendulum.from_fmu(component.fmu, component.start)
+    eigen = max(abs(lam) for lam in linearized_eigenvalues(kind, pendulum.parameters))
+    steps = max(4, math.ceil(frame * eigen / 0.02))  # h * |lambda| about 0.02 to start with
+    for _ in range(4):
+        reference = tight_reference(pendulum, duration, frame, steps)
+        if reference.estimated_error <= tolerance / 100:
+            break
+        steps *= 2
+    else:
+        raise HarnessError(f"{component.name}: no reference within {tolerance / 100:.1e} m "
+                           f"(estimate {reference.estimated_error:.1e} m)")
+    points = pendulum.points(reference.states)
+    return np.stack([points[c] for c in columns], axis=1), reference.estimated_error
+
+
+def _closed_form_positions(pendulum: Pendulum, times: np.ndarray, columns) -> np.ndarray:
+    """The small-angle motion phi'' = -(g/L) phi - d phi' from rest or from (phi0, omega0), exactly."""
+    p = pendulum.parameters
+    w0, d = math.sqrt(p["g"] / p["L"]), p["d"]
+    phi0, omega0 = pendulum.start
+    roots = np.roots([1.0, d, w0 * w0]).astype(complex)
+    if abs(roots[0] - roots[1]) < 1e-9 * w0:  # critical damping
+        r = roots[0].real
+        phi = (phi0 + (omega0 - r * phi0) * times) * np.exp(r * times)
+    else:
+        a = (omega0 - roots[1] * phi0) / (roots[0] - roots[1])
+        phi = (a * np.exp(roots[0] * times) + (phi0 - a) * np.exp(roots[1] * times)).real
+    states = np.column_stack([phi, np.zeros_like(phi)])
+    points = pendulum.points(states)
+    return np.stack([points[c] for c in columns], axis=1)
+
+
+def _predict(runner: ObjectRunner, method: str, h: float, tolerance: float) -> tuple[float, int, str] | None:
+    """Step doubling (see the module text); None when the estimate cannot be trusted or the run fails."""
+    coarse, cost = runner.run(_settings(runner, method, h))
+    if not np.all(np.isfinite(coarse)):
+        return None
+    half = runner.run(_settings(runner, method, h / 2))[0]
+    first = largest_distance(coarse, half)
+    p = ORDER[method]
+    if not math.isfinite(first):
+        return None
+    if first > tolerance / 100:
+        quarter = runner.run(_settings(runner, method, h / 4))[0]
+        second = largest_distance(half, quarter)
+        if not (second > 0 and 2 ** p / 2.5 <= first / second <= 2 ** p * 2.5):
+            return None
+    return first * 2 ** p / (2 ** p - 1), cost, "step doubling"
+
+
+def runner_is_simple(runner: ObjectRunner) -> bool:
+    return runner.instance.model_description.coSimulation.modelIdentifier == "SimplePendulum"
+
+
+def _settings(runner: ObjectRunner, method: str, h: float) -> dict:
+    settings = {"solver": method, "h": h}
+    if runner_is_simple(runner):
+        settings["model"] = "nonlinear"
+    return settings
+
+
+def plan_object(job: tuple[Component, float, float, float, list, dict]) -> ObjectPlan:
+    """Plans one independent object (runs in a worker; `tables` are method_tables(), read by the caller)."""
+    component, duration, frame, tolerance, columns, tables = job
+    kind = read_fmi2_description(component.fmu).coSimulation.modelIdentifier
+    pendulum = Pendulum.from_fmu(component.fmu, component.start)
+    eigenvalues = linearized_eigenvalues(kind, pendulum.parameters)
+    reference, _ = reference_positions(component, kind, duration, frame, columns, tolerance)
+    runner = ObjectRunner(component, duration, frame, columns)
+    try:
+        candidates: list[Candidate] = []
+        if kind == "SimplePendulum" and not any(k in component.start for k in ("F_x", "F_y")):
+            exact = largest_distance(_closed_form_positions(pendulum, runner.grid, columns), reference)
+            # the FMU's closed form: one evaluation per frame
+            candidates.append(Candidate("linear", "closed form", frame, exact, len(runner.grid) - 1,
+                                        "closed form against the reference"))
+        for method in ORDER:
+            for k in SUBSTEPS:
+                h = frame / k
+                if not stable_over(tables[method], eigenvalues, h, duration):
+                    continue
+                prediction = _predict(runner, method, h, tolerance)
+                if prediction is not None and prediction[0] <= SAFETY * tolerance:
+                    candidates.append(Candidate("nonlinear", method, h, *prediction))
+                    break
+        default_positions, default_cost = runner.run(_settings(runner, *DEFAULT))
+        default_error = largest_distance(default_positions, reference)
+        if stable_over(tables[DEFAULT[0]], eigenvalues, DEFAULT[1], duration):
+            prediction = _predict(runner, *DEFAULT, tolerance)
+            if prediction is not None and prediction[0] <= SAFETY * tolerance:
+                candidates.append(Candidate("nonlinear", *DEFAULT, prediction[0], default_cost, "step doubling"))
+            elif default_error <= tolerance:  # the default is what the plan is measured against: always a choice
+                candidates.append(Candidate("nonlinear", *DEFAULT, default_error, default_cost, "the default, verified"))
+        candidates.sort(key=lambda c: c.cost)
+        for candidate in candidates:
+            settings = ({"model": "linear", "h": frame} if candidate.model == "linear"
+                        else _settings(runner, candidate.method, candidate.h))
+            positions, cost = runner.run(settings)
+            verified = largest_distance(positions, reference)
+            if verified <= tolerance:
+                return ObjectPlan(component.name, kind, candidate.model, candidate.method, candidate.h,
+                                  candidate.predicted, verified, cost, default_error, default_cost, candidate.how,
+                                  tolerance)
+        raise HarnessError(f"{component.name}: no candidate meets {tolerance:.3g} m over {duration:g} s "
+                           f"(the finest tried was h = {frame / SUBSTEPS[-1]:.3g} s)")
+    finally:
+        runner.close()
+
+
+def plan_scene(system: System, tolerance: float | None = None, duration: float | None = None,
+               scheduler: str | None = None, workers: int | None = None) -> list[ObjectPlan]:
+    tolerance = tolerance if tolerance is not None else system.tolerance()
+    if tolerance is None or not tolerance > 0:
+        raise HarnessError(f"{system.name}: give --tolerance (metres) or an \"accuracy\" in the scene")
+    duration = duration if duration is not None else system.stop
+    frame = system.frame_step()
+    if duration is None or frame is None:
+        raise HarnessError(f"{system.name}: the scene needs \"stop\" and a frame rate or \"step\"")
+    if system.connections:
+        from harness.coupled_plan import plan_coupled
+        return plan_coupled(system, tolerance, duration, frame, scheduler, workers)
+    for component in system.components:
+        if read_fmi2_description(component.fmu).coSimulation.modelIdentifier not in ("SimplePendulum",
+                                                                                       "DoublePendulum",
+                                                                                       "SpringPendulum"):
+            raise HarnessError(f"{component.name}: only pendulums can be planned alone")
+    tables = method_tables()
+    jobs = [(c, duration, frame, tolerance, _columns(system, c), tables) for c in system.components]
+    return run_sweep(plan_object, jobs, scheduler, workers)
+
+
+def _columns(system: System, component: Component) -> list[tuple[str, str]]:
+    from harness.equations import OUTER_MASS
+    kind = read_fmi2_description(component.fmu).coSimulation.modelIdentifier
+    return [tuple(pair) for pair in system.traces.get(component.name, [OUTER_MASS[kind]])]
+
+
+def with_plan(system: System, plans: list[ObjectPlan]) -> System:
+    """The scene with each object's start values set to its plan."""
+    chosen = {p.object: p for p in plans}
+    components = []
+    for c in system.components:
+        plan = chosen.get(c.name)
+        if plan is None:
+            components.append(c)
+            continue
+        settings = {"model": "linear", "h": plan.h} if plan.model == "linear" else {"solver": plan.method, "h": plan.h}
+        if plan.kind == "SimplePendulum" and plan.model != "linear":
+            settings["model"] = "nonlinear"
+        components.append(replace(c, start={**c.start, **settings}))
+    return replace(system, components=components)
+
+
+def write_plan_csv(plans: list[ObjectPlan], path: Path) -> None:
+    from harness.records import write_records
+    write_records(plans, path, ["object", "kind", "model", "method", "h", "communication_step", "predicted_error",
+                                "verified_error", "cost", "default_error", "default_cost", "how"])

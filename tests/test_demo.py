@@ -1,0 +1,48 @@
+"""The main job: `harness demo --out DIR` writes DIR/index.html with every section's verdict, the
+pictures it names, the animation, and the CSV files behind the tables."""
+from __future__ import annotations
+
+import re
+
+import pytest
+from PIL import Image
+
+from harness.cli import main
+
+
+@pytest.fixture(scope="module")
+def demo(fmu_paths, tmp_path_factory):
+    out = tmp_path_factory.mktemp("demo")
+    assert main(["demo", "--out", str(out)]) == 0
+    return out, (out / "index.html").read_text()
+
+
+def test_every_section_passes(demo):
+    _, page = demo
+    verdicts = re.findall(r"<li class='(pass|fail)'>", page)
+    assert verdicts == ["pass"] * 5
+    for title in ("Thesis scene", "Coupled pendulums", "Plan for the thesis scene", "Validation",
+                  "Speed against accuracy"):
+        assert f"<h2>{title}" in page
+
+
+def test_every_picture_named_exists(demo):
+    out, page = demo
+    names = re.findall(r'<img src="([^"]+)"', page)
+    assert {"thesis_scene_traces.png", "thesis_scene.gif", "coupled_traces.png", "work-precision.png",
+            "stability-regions.png"} <= set(names)
+    for name in names:
+        assert (out / name).stat().st_size > 5_000, name
+
+
+def test_the_animation_covers_the_scene(demo):
+    """25 frames per second over the scene's 20 s."""
+    with Image.open(demo[0] / "thesis_scene.gif") as gif:
+        assert gif.n_frames == 501
+
+
+def test_the_tables_have_their_data(demo):
+    out, _ = demo
+    for name in ("plan.csv", "work-precision.csv", "stability.csv", "coupled_pendulums.csv", "double.csv",
+                 "spring_D34.csv", "spring_D104.csv", "simple.csv"):
+        assert len((out / name).read_text().splitlines()) > 4, name
