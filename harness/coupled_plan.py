@@ -13,7 +13,8 @@ import numpy as np
 from harness.coupling import CoupledPendulums
 from harness.errors import HarnessError
 from harness.master import MasterOptions, run_system
-from harness.planner import DEFAULT, ORDER, SAFETY, ObjectPlan, largest_distance
+from harness.methods import ORDER
+from harness.planner import DEFAULT, SAFETY, ObjectPlan, largest_distance, step_doubling
 from harness.stability import linearized_eigenvalues, method_tables, stable_over
 from harness.system import System
 
@@ -53,19 +54,13 @@ def plan_coupled(system: System, tolerance: float, duration: float, frame: float
                    *linearized_eigenvalues("SimplePendulum", physics.right), 1j * spring_rate, -1j * spring_rate]
 
     def predict(method: str, H: float, h: float):
-        coarse, evaluations = _run(system, names, method, H, h, duration, frame)
-        if not np.all(np.isfinite(coarse)):
-            return None
-        half = _run(system, names, method, H / 2, h / 2, duration, frame)[0]
-        first = largest_distance(coarse, half)
-        q = min(2, ORDER[method])
-        if not math.isfinite(first):
-            return None
-        if first > tolerance / 100:
-            second = largest_distance(half, _run(system, names, method, H / 4, h / 4, duration, frame)[0])
-            if not (second > 0 and 2 ** q / 2.5 <= first / second <= 2 ** q * 2.5):
-                return None
-        return first * 2 ** q / (2 ** q - 1), evaluations
+        evaluations = {}
+
+        def run(scale: float) -> np.ndarray:
+            positions, evaluations[scale] = _run(system, names, method, H * scale, h * scale, duration, frame)
+            return positions
+        predicted = step_doubling(run, min(2, ORDER[method]), tolerance)
+        return None if predicted is None else (predicted, evaluations[1.0])
 
     candidates = []
     for m in COMMUNICATION_DIVISORS:

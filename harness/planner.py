@@ -22,7 +22,7 @@ and verified against the monolithic reference (`coupling.CoupledPendulums`).
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -30,15 +30,13 @@ import numpy as np
 from harness.equations import Pendulum
 from harness.errors import HarnessError
 from harness.fmu_instance import FmuInstance, read_fmi2_description
+from harness.methods import ORDER
 from harness.reference import tight_reference
 from harness.simulation import Recorder, communication_grid
 from harness.stability import linearized_eigenvalues, method_tables, stable_over
 from harness.sweep import run_sweep
 from harness.system import Component, System
 
-ORDER = {"euler": 1, "midpoint": 2, "heun": 2, "rk3": 3, "rk4": 4, "nystrom5": 5, "ab2": 2, "ab3": 3, "ab4": 4,
-         "ab5": 5, "ab6": 6}
-STAGES = {"euler": 1, "midpoint": 2, "heun": 2, "rk3": 3, "rk4": 4, "nystrom5": 6}
 SUBSTEPS = (1, 2, 3, 4, 5, 6, 8, 10, 12, 16, 20, 25, 32, 40, 50, 64, 80, 100, 128, 160, 200, 256, 320, 400)
 DEFAULT = ("rk4", 0.008)
 SAFETY = 0.5
@@ -77,6 +75,7 @@ class ObjectRunner:
     def __init__(self, component: Component, duration: float, frame: float, columns: list[tuple[str, str]]):
         self.component = component
         self.instance = FmuInstance(component.fmu, name=component.name)
+        self.simple = self.instance.model_description.coSimulation.modelIdentifier == "SimplePendulum"
         self.grid = communication_grid(0.0, duration, frame)
         self.columns = columns
         self.recorder = Recorder(self.instance, self.grid, [c for pair in columns for c in pair])
@@ -141,31 +140,38 @@ def _closed_form_positions(pendulum: Pendulum, times: np.ndarray, columns) -> np
     return np.stack([points[c] for c in columns], axis=1)
 
 
-def _predict(runner: ObjectRunner, method: str, h: float, tolerance: float) -> tuple[float, int, str] | None:
-    """Step doubling (see the module text); None when the estimate cannot be trusted or the run fails."""
-    coarse, cost = runner.run(_settings(runner, method, h))
+def step_doubling(run, order: int, tolerance: float) -> float | None:
+    """Predicted error of run(1) from run(1), run(1/2) and, unless the difference is already below a
+    hundredth of the tolerance, run(1/4) to check the order (see the module text). `run(scale)`
+    gives the positions with every step scaled; None: a run failed or the order did not show."""
+    coarse = run(1.0)
     if not np.all(np.isfinite(coarse)):
         return None
-    half = runner.run(_settings(runner, method, h / 2))[0]
+    half = run(0.5)
     first = largest_distance(coarse, half)
-    p = ORDER[method]
     if not math.isfinite(first):
         return None
     if first > tolerance / 100:
-        quarter = runner.run(_settings(runner, method, h / 4))[0]
-        second = largest_distance(half, quarter)
-        if not (second > 0 and 2 ** p / 2.5 <= first / second <= 2 ** p * 2.5):
+        second = largest_distance(half, run(0.25))
+        if not (second > 0 and 2 ** order / 2.5 <= first / second <= 2 ** order * 2.5):
             return None
-    return first * 2 ** p / (2 ** p - 1), cost, "step doubling"
+    return first * 2 ** order / (2 ** order - 1)
 
 
-def runner_is_simple(runner: ObjectRunner) -> bool:
-    return runner.instance.model_description.coSimulation.modelIdentifier == "SimplePendulum"
+def _predict(runner: ObjectRunner, method: str, h: float, tolerance: float) -> tuple[float, int, str] | None:
+    """Step doubling on h; (predicted error, evaluations at h, how) or None."""
+    costs = {}
+
+    def run(scale: float) -> np.ndarray:
+        positions, costs[scale] = runner.run(_settings(runner, method, h * scale))
+        return positions
+    predicted = step_doubling(run, ORDER[method], tolerance)
+    return None if predicted is None else (predicted, costs[1.0], "step doubling")
 
 
 def _settings(runner: ObjectRunner, method: str, h: float) -> dict:
     settings = {"solver": method, "h": h}
-    if runner_is_simple(runner):
+    if runner.simple:
         settings["model"] = "nonlinear"
     return settings
 
@@ -221,8 +227,10 @@ def plan_object(job: tuple[Component, float, float, float, list, dict]) -> Objec
 def plan_scene(system: System, tolerance: float | None = None, duration: float | None = None,
                scheduler: str | None = None, workers: int | None = None) -> list[ObjectPlan]:
     tolerance = tolerance if tolerance is not None else system.tolerance()
-    if tolerance is None or not tolerance > 0:
+    if tolerance is None:
         raise HarnessError(f"{system.name}: give --tolerance (metres) or an \"accuracy\" in the scene")
+    if not (tolerance > 0 and math.isfinite(tolerance)):
+        raise HarnessError(f"tolerance {tolerance} m: need a positive number")
     duration = duration if duration is not None else system.stop
     frame = system.frame_step()
     if duration is None or frame is None:
@@ -244,22 +252,6 @@ def _columns(system: System, component: Component) -> list[tuple[str, str]]:
     from harness.equations import OUTER_MASS
     kind = read_fmi2_description(component.fmu).coSimulation.modelIdentifier
     return [tuple(pair) for pair in system.traces.get(component.name, [OUTER_MASS[kind]])]
-
-
-def with_plan(system: System, plans: list[ObjectPlan]) -> System:
-    """The scene with each object's start values set to its plan."""
-    chosen = {p.object: p for p in plans}
-    components = []
-    for c in system.components:
-        plan = chosen.get(c.name)
-        if plan is None:
-            components.append(c)
-            continue
-        settings = {"model": "linear", "h": plan.h} if plan.model == "linear" else {"solver": plan.method, "h": plan.h}
-        if plan.kind == "SimplePendulum" and plan.model != "linear":
-            settings["model"] = "nonlinear"
-        components.append(replace(c, start={**c.start, **settings}))
-    return replace(system, components=components)
 
 
 def write_plan_csv(plans: list[ObjectPlan], path: Path) -> None:

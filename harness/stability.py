@@ -30,11 +30,11 @@ from pathlib import Path
 import numpy as np
 
 from harness.records import read_records, write_records
+from harness.methods import FIXED_STEP
 from harness.sweep import run_sweep
 
 PERIODS = 100
 GROWTH_LIMIT = 1.5
-FIXED_STEP = ("euler", "midpoint", "heun", "rk3", "rk4", "nystrom5", "ab2", "ab3", "ab4", "ab5", "ab6")
 DAMPING_RATIOS = (0.0, 0.1, 0.25, 0.5, 0.75, 0.95, 2.0, 10.0)  # zeta = d / (2 omega0); 10 is d = 20 omega0
 FULL_DAMPING_RATIOS = (0.0, 0.05, 0.1, 0.175, 0.25, 0.375, 0.5, 0.625, 0.75, 0.85, 0.95, 1.0, 1.25, 1.5, 2.0, 3.0,
                        5.0, 10.0, 20.0)
@@ -109,9 +109,25 @@ def theory_limit(table: dict, case: Case) -> float:
 
 
 def _parameters(fmu: Path) -> dict[str, float]:
-    from harness.fmu_instance import read_fmi2_description
-    return {v.name: float(v.start) for v in read_fmi2_description(fmu).modelVariables
-            if v.type == "Real" and v.start is not None}
+    from harness.equations import Pendulum
+    return Pendulum.from_fmu(fmu).parameters
+
+
+def double_modes(p: dict[str, float]) -> tuple[np.ndarray, np.ndarray]:
+    """Squared angular frequencies and mode shapes (columns) of the double pendulum hanging at rest:
+    K v = omega^2 M v."""
+    mass = np.array([[p["m1"] * p["s1"] ** 2 + p["J1"] + p["m2"] * p["l1"] ** 2, p["m2"] * p["l1"] * p["s2"]],
+                     [p["m2"] * p["l1"] * p["s2"], p["m2"] * p["s2"] ** 2 + p["J2"]]])
+    stiffness = np.diag([(p["m1"] * p["s1"] + p["m2"] * p["l1"]) * p["g"], p["m2"] * p["s2"] * p["g"]])
+    squares, shapes = np.linalg.eig(np.linalg.solve(mass, stiffness))
+    return squares.real, shapes.real
+
+
+def spring_modes(p: dict[str, float]) -> tuple[float, float, float]:
+    """(static stretch, spring frequency, swing frequency) of the spring pendulum hanging at rest,
+    where the two modes decouple."""
+    stretch = p["m"] * p["g"] / p["D"]
+    return stretch, math.sqrt(p["D"] / p["m"]), math.sqrt(p["g"] / (p["l0"] + stretch))
 
 
 def simple_cases(fmu: Path, ratios=DAMPING_RATIOS) -> list[Case]:
@@ -128,16 +144,12 @@ def simple_cases(fmu: Path, ratios=DAMPING_RATIOS) -> list[Case]:
 
 
 def double_case(fmu: Path) -> Case:
-    p = _parameters(fmu)
-    mass = np.array([[p["m1"] * p["s1"] ** 2 + p["J1"] + p["m2"] * p["l1"] ** 2, p["m2"] * p["l1"] * p["s2"]],
-                     [p["m2"] * p["l1"] * p["s2"], p["m2"] * p["s2"] ** 2 + p["J2"]]])
-    stiffness = np.diag([(p["m1"] * p["s1"] + p["m2"] * p["l1"]) * p["g"], p["m2"] * p["s2"] * p["g"]])
-    squares, shapes = np.linalg.eig(np.linalg.solve(mass, stiffness))
-    fastest = int(np.argmax(squares.real))
-    omega = math.sqrt(squares[fastest].real)
-    shape = shapes[:, fastest].real
+    squares, shapes = double_modes(_parameters(fmu))
+    fastest = int(np.argmax(squares))
+    omega = math.sqrt(squares[fastest])
+    shape = shapes[:, fastest]
     shape = 0.01 * shape / np.max(np.abs(shape))
-    eigenvalues = tuple(s * math.sqrt(q.real) / omega for q in squares for s in (1j, -1j))
+    eigenvalues = tuple(s * math.sqrt(q) / omega for q in squares for s in (1j, -1j))
     return Case("DoublePendulum", 0.0, 0.01, omega,
                 {"phi1": float(shape[0]), "phi2": float(shape[1]), "omega1": 0.0, "omega2": 0.0},
                 {"phi1": 0.0, "phi2": 0.0, "omega1": 0.0, "omega2": 0.0}, eigenvalues)
@@ -145,9 +157,7 @@ def double_case(fmu: Path) -> Case:
 
 def spring_case(fmu: Path) -> Case:
     """Hanging at rest the pendulum and the spring modes decouple; the faster one is released."""
-    p = _parameters(fmu)
-    stretch = p["m"] * p["g"] / p["D"]
-    spring, swing = math.sqrt(p["D"] / p["m"]), math.sqrt(p["g"] / (p["l0"] + stretch))
+    stretch, spring, swing = spring_modes(_parameters(fmu))
     omega = max(spring, swing)
     start = ({"phi": 0.0, "eps": stretch + 0.01} if spring >= swing else {"phi": 0.01, "eps": stretch})
     eigenvalues = tuple(s * w / omega for w in (spring, swing) for s in (1j, -1j))
@@ -301,13 +311,9 @@ def linearized_eigenvalues(kind: str, p: dict[str, float]) -> list[complex]:
     if kind == "SimplePendulum":
         squares = [p["g"] / p["L"]]
     elif kind == "DoublePendulum":
-        mass = np.array([[p["m1"] * p["s1"] ** 2 + p["J1"] + p["m2"] * p["l1"] ** 2, p["m2"] * p["l1"] * p["s2"]],
-                         [p["m2"] * p["l1"] * p["s2"], p["m2"] * p["s2"] ** 2 + p["J2"]]])
-        stiffness = np.diag([(p["m1"] * p["s1"] + p["m2"] * p["l1"]) * p["g"], p["m2"] * p["s2"] * p["g"]])
-        squares = [float(v.real) for v in np.linalg.eigvals(np.linalg.solve(mass, stiffness))]
+        squares = [float(v) for v in double_modes(p)[0]]
     elif kind == "SpringPendulum":
-        stretch = p["m"] * p["g"] / p["D"]
-        squares = [p["D"] / p["m"], p["g"] / (p["l0"] + stretch)]
+        squares = [w * w for w in spring_modes(p)[1:]]
     else:
         raise ValueError(kind)
     d = p.get("d", 0.0)

@@ -19,6 +19,7 @@ import numpy as np
 
 from harness.equations import OUTER_MASS, Pendulum
 from harness.fmu_instance import FmuInstance
+from harness.methods import FIXED_STEP, ORDER
 from harness.reference import Reference, tight_reference
 from harness.simulation import Recorder, communication_grid
 from harness.records import columns_of, read_records, write_records
@@ -26,9 +27,6 @@ from harness.sweep import run_sweep
 
 STOP, STEP = 10.0, 0.01
 PENDULUMS = ("SimplePendulum", "DoublePendulum", "SpringPendulum")
-FIXED_STEP = ("euler", "midpoint", "heun", "rk3", "rk4", "nystrom5", "ab2", "ab3", "ab4", "ab5", "ab6")
-ORDER = {"euler": 1, "midpoint": 2, "heun": 2, "rk3": 3, "rk4": 4, "nystrom5": 5, "rkf45": 4,
-         "ab2": 2, "ab3": 3, "ab4": 4, "ab5": 5, "ab6": 6}
 # Substeps per communication step, by order: enough that every method's error reaches the
 # asymptotic range (below about 2e-2 m; the chaotic DoublePendulum gets there last) and, for the
 # higher orders, the rounding floor. Euler never gets there on the DoublePendulum (it would need
@@ -139,8 +137,9 @@ def _scipy_point(task: Task, reference: Reference) -> Point:
 def _cvode_point(task: Task, reference: Reference) -> Point:
     from fmpy import simulate_fmu
     from fmpy.model_description import read_model_description
+    from fmpy import extract
     description = read_model_description(task.fmu)  # read once: simulate_fmu would parse it every run
-    unzipped = _extracted(task.fmu)
+    unzipped = extract(task.fmu)  # once per point, not per repeat
 
     def run():
         return simulate_fmu(unzipped, model_description=description, fmi_type="ModelExchange", solver="CVode",
@@ -150,16 +149,6 @@ def _cvode_point(task: Task, reference: Reference) -> Point:
     positions = np.column_stack([result[n] for n in OUTER_MASS[task.object]])
     return Point(task.object, task.method, task.h, task.tol, position_error(positions, reference),
                  int(result["n_rhs"][-1]), seconds)
-
-
-_EXTRACTED: dict[str, str] = {}
-
-
-def _extracted(fmu: str) -> str:
-    from fmpy import extract
-    if fmu not in _EXTRACTED:
-        _EXTRACTED[fmu] = extract(fmu)
-    return _EXTRACTED[fmu]
 
 
 def compute(job: tuple[Task, Reference]) -> Point:

@@ -130,3 +130,10 @@ def test_thesis_scene_file_is_the_contract():
     assert (d["h"], d["l1"], d["l2"], d["anchor_y"]) == (0.04, 0.9, 0.9, 0.9)
     assert d["phi1"] == d["phi2"] == pytest.approx(0.5 * math.pi)
     assert system.tolerance() == pytest.approx(1 / 250)
+
+
+@pytest.mark.parametrize("value", ["-1", "0", "nan", "inf"])
+def test_a_tolerance_that_is_not_a_positive_number_is_a_one_line_error(fmu_paths, value, capsys):
+    assert main(["plan", str(PROJECT_ROOT / "scenes" / "thesis_scene.json"), "--tolerance", value]) == 2
+    err = capsys.readouterr().err
+    assert f"tolerance {float(value)} m: need a positive number" in err and err.count("\n") == 1
