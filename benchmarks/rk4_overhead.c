@@ -83,7 +83,6 @@ static double run_fmu(const Api *api, long steps, double *result)
 static double run_bare(long steps, double *result)
 {
     double real[N_REAL], x[N_STATES], y[N_STATES], k1[N_STATES], k2[N_STATES], k3[N_STATES], k4[N_STATES];
-    const double u[INPUT_SLOTS] = {0};
     int32_t integer[INTEGER_SLOTS];
     ModelConst c;
     const double h = STEP;
@@ -92,17 +91,23 @@ static double run_bare(long steps, double *result)
     int i;
     for (i = 0; i < N_REAL; i++) real[i] = REAL_VARIABLES[i].start;
     for (i = 0; i < N_INTEGER; i++) integer[i] = (int32_t)INTEGER_VARIABLES[i].start;
-    model_prepare(real, integer, &c);
+    {
+        char message[256];
+        if (model_prepare(real, integer, &c, message, sizeof message)) {
+            fprintf(stderr, "%s\n", message);
+            exit(2);
+        }
+    }
     for (i = 0; i < N_STATES; i++) x[i] = real[i];
     t0 = now();
     for (n = 0; n < steps; n++) {
-        model_derivatives(&c, x, u, k1);
+        model_derivatives(&c, 0.0, x, NULL, k1);
         for (i = 0; i < N_STATES; i++) y[i] = x[i] + 0.5 * h * k1[i];
-        model_derivatives(&c, y, u, k2);
+        model_derivatives(&c, 0.0, y, NULL, k2);
         for (i = 0; i < N_STATES; i++) y[i] = x[i] + 0.5 * h * k2[i];
-        model_derivatives(&c, y, u, k3);
+        model_derivatives(&c, 0.0, y, NULL, k3);
         for (i = 0; i < N_STATES; i++) y[i] = x[i] + h * k3[i];
-        model_derivatives(&c, y, u, k4);
+        model_derivatives(&c, 0.0, y, NULL, k4);
         for (i = 0; i < N_STATES; i++) x[i] += h / 6.0 * (k1[i] + 2.0 * k2[i] + 2.0 * k3[i] + k4[i]);
     }
     t1 = now();

@@ -45,6 +45,13 @@ def command_simulate(args: argparse.Namespace) -> int:
     return 0
 
 
+def command_derive(args: argparse.Namespace) -> int:
+    from harness.objects.build import derive_fmu
+    derived = derive_fmu(args.object_file, args.out)
+    print(f"wrote {derived.path}")
+    return 0
+
+
 def command_demo(args: argparse.Namespace) -> int:
     from harness.report import run_demo
     report, index = run_demo(Path(args.out), args.duration)
@@ -247,6 +254,11 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--workers", type=int, help="parallel worker processes (default: all local cores)")
     p.add_argument("--scheduler", metavar="ADDRESS", help="plan on a Dask cluster ('local' or HOST:PORT)")
     p.set_defaults(run=command_plan)
+
+    p = sub.add_parser("derive", help="an object file (T, U, points, forces) -> DIR/<identifier>.fmu")
+    p.add_argument("object_file", help="the object's .toml file")
+    p.add_argument("--out", default=".", help="folder for the FMU (default: the current one)")
+    p.set_defaults(run=command_derive)
 
     p = sub.add_parser("demo", help="the main job: thesis scene, coupled scene, plan, validation, charts -> DIR/index.html")
     p.add_argument("--out", default="out", help="output folder (default out/)")

@@ -4,11 +4,14 @@ from __future__ import annotations
 import os
 import shutil
 import subprocess
+import sys
 from pathlib import Path
 
 from harness.errors import HarnessError
+from harness.objects.registry import handwritten_names, object_names
 
-FMU_NAMES = ("SimplePendulum", "DoublePendulum", "SpringPendulum", "Spring")
+# Every object file in modelDescription/ and the hand-written models beside them.
+FMU_NAMES = object_names() + handwritten_names()
 PROJECT_ROOT = Path(__file__).resolve().parent.parent
 
 
@@ -25,7 +28,8 @@ def build_fmus(quiet: bool = True) -> None:
         raise HarnessError("cmake is not on PATH: it is needed to build the FMUs")
     output = subprocess.DEVNULL if quiet else None
     try:
-        subprocess.run(["cmake", "-S", str(PROJECT_ROOT), "-B", str(build_dir()), "-DCMAKE_BUILD_TYPE=Release"],
+        subprocess.run(["cmake", "-S", str(PROJECT_ROOT), "-B", str(build_dir()), "-DCMAKE_BUILD_TYPE=Release",
+                        f"-DOBJECTS_PYTHON={sys.executable}"],
                        check=True, stdout=output)
         subprocess.run(["cmake", "--build", str(build_dir()), "-j2"], check=True, stdout=output)
     except subprocess.CalledProcessError as error:

@@ -81,7 +81,7 @@ def test_tree_counts():
 
 
 def test_solver_order_matches_the_xml_enumeration(tables):
-    root = ET.parse(PROJECT_ROOT / "modelDescription" / "SimplePendulum.xml").getroot()
+    root = ET.parse(PROJECT_ROOT / "build" / "generated" / "SimplePendulum" / "modelDescription.xml").getroot()
     items = [item.get("name") for item in root.iter("Item") if item.get("name") in tables]
     assert items == list(tables) == ["euler", "midpoint", "heun", "rk3", "rk4", "rkf45", "nystrom5",
                                      "ab2", "ab3", "ab4", "ab5", "ab6"]

@@ -80,7 +80,7 @@ def parse(path: Path) -> ModelDescription:
     if len(identifiers) != 1:
         raise ModelDescriptionError(f"{path}: ModelExchange and CoSimulation must share one modelIdentifier")
     identifier = identifiers.pop()
-    if identifier != path.stem:
+    if identifier != path.stem and path.name != "modelDescription.xml":
         raise ModelDescriptionError(f"{path}: modelIdentifier {identifier} must equal the file name")
     source_lists = [[f.get("name") for f in e.iter("File")] for e in root if e.tag in ("ModelExchange", "CoSimulation")]
     if any(s != source_lists[0] for s in source_lists):
@@ -150,7 +150,7 @@ def check(md: ModelDescription) -> None:
     if len(set(names)) != len(names):
         raise ModelDescriptionError(f"{where}: variable names must be unique")
     if md.states:
-        for required in ("solver", "h", "tol", "n_rhs", "n_steps", "n_rejected", "g", "d", "anchor_x", "anchor_y"):
+        for required in ("solver", "h", "tol", "n_rhs", "n_steps", "n_rejected", "d"):
             if required not in names:
                 raise ModelDescriptionError(f"{where}: a model with states must declare the variable {required}")
 
@@ -273,7 +273,8 @@ def main(argv: list[str] | None = None) -> int:
             path = target / "model_description.h"
             if not path.exists() or path.read_text() != text:  # keep timestamps stable for make
                 path.write_text(text)
-            equations = (args.models / md.identifier / "equations.html").read_text()
+            beside = md.path.parent / "equations.html"  # a generated model description has its equations beside it
+            equations = (beside if beside.is_file() else args.models / md.identifier / "equations.html").read_text()
             (target / "documentation" / "index.html").write_text(documentation(md, equations))
     except (ModelDescriptionError, ET.ParseError, OSError, ValueError, StopIteration) as error:
         print(f"fmu_codegen: error: {error}", file=sys.stderr)

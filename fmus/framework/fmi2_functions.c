@@ -200,11 +200,10 @@ static int ensure_constants(Instance *inst, const char *function)
 {
     char message[256];
     if (inst->constants_valid) return 1;
-    if (model_check_parameters(inst->s.real, message, sizeof message)) {
+    if (model_prepare(inst->s.real, inst->s.integer, &inst->constants, message, sizeof message)) {
         log_error(inst, "%s: %s", function, message);
         return 0;
     }
-    model_prepare(inst->s.real, inst->s.integer, &inst->constants);
     inst->constants_valid = 1;
     return 1;
 }
@@ -239,13 +238,13 @@ static fmi2Status ensure_outputs(Instance *inst, const char *function)
         double u[INPUT_SLOTS];
         gather_inputs(inst, u);
         dx = inst->s.real + N_STATES; /* der(x) follow the states (checked by the code generator) */
-        model_derivatives(&inst->constants, inst->s.real, u, dx);
+        model_derivatives(&inst->constants, inst->s.time, inst->s.real, u, dx);
         /* In Model Exchange these are the importer's solver's evaluations; in Co-Simulation the
            integrator counts its own and this one only serves the outputs. */
         if (inst->type == fmi2ModelExchange) inst->s.integrator.n_rhs++;
     }
 #endif
-    if (!model_outputs(&inst->constants, dx, inst->s.real)) {
+    if (!model_outputs(&inst->constants, inst->s.time, dx, inst->s.real)) {
         log_discard(inst, "%s: the outputs are undefined in the current (singular) configuration", function);
         return fmi2Discard;
     }
@@ -420,9 +419,14 @@ fmi2Status fmi2ExitInitializationMode(fmi2Component c)
     inst->constants_valid = 0;
     if (!ensure_constants(inst, "fmi2ExitInitializationMode")) return fmi2Error;
 #if N_STATES > 0
-    if (!state_acceptable(inst, inst->s.real)) {
-        log_error(inst, "fmi2ExitInitializationMode: the start values of the states give a singular configuration "
-                  "or non-finite derivatives or outputs");
+    if (!state_acceptable(inst, inst->s.time, inst->s.real)) {
+        char reason[256];
+        if (model_explain_singularity(&inst->constants, inst->s.time, inst->s.real, reason, sizeof reason))
+            log_error(inst, "fmi2ExitInitializationMode: the start values of the states give a singular "
+                      "configuration: %s", reason);
+        else
+            log_error(inst, "fmi2ExitInitializationMode: the start values of the states give a singular configuration "
+                      "or non-finite derivatives or outputs");
         return fmi2Error;
     }
 #endif
@@ -1078,7 +1082,7 @@ fmi2Status fmi2GetRealOutputDerivatives(fmi2Component c, const fmi2ValueReferenc
     dx = inst->s.real + N_STATES;
     for (i = 0; i < N_STATES; i++) rate[i] = dx[i];
 #endif
-    model_output_rates(&inst->constants, inst->s.real, dx, inst->s.input_derivative, rate);
+    model_output_rates(&inst->constants, inst->s.time, inst->s.real, dx, inst->s.input_derivative, rate);
     for (i = 0; i < nvr; i++) value[i] = rate[vr[i]];
     return fmi2OK;
 }

@@ -5,6 +5,7 @@
 #define FRAMEWORK_H
 
 #include <math.h> /* INFINITY in the generated variable table */
+#include <stddef.h>
 #include <stdint.h>
 
 #include "fmi2_api.h"
@@ -100,28 +101,34 @@ fmi2Status step_to(Instance *inst, double t, double H);
 void restart_integrator(Instance *inst);
 #if N_STATES > 0
 /* States x (of the Instance context) are finite and regular, with finite derivatives and outputs. */
-int state_acceptable(const void *context, const double *x);
+int state_acceptable(const void *context, double t, const double *x);
 #endif
 
-/* ---- implemented by each model in its physics.c ---- */
+/* ---- implemented by each model: physics.h defines ModelConst and, for a model with states,
+ * static inline void model_derivatives(const ModelConst *c, double t, const double *x,
+ *                                      const double *u, double *dx)
+ * (dx = f(t, x, u); u == NULL when every input is zero and constant, so that force terms can be
+ * skipped); physics.c defines the rest. ---- */
 
-/* Derived constants from the parameters (called after initialization and after a tunable change). */
-void model_prepare(const double *real, const int32_t *integer, ModelConst *c);
-/* Constraints that span several parameters; returns 0 when fine, else writes a message. */
-int model_check_parameters(const double *real, char *message, size_t size);
+/* Derived constants from the parameters (after initialization and after a tunable change); returns
+ * 0, or 1 with a message when the parameters together are inconsistent. */
+int model_prepare(const double *real, const int32_t *integer, ModelConst *c, char *message, size_t size);
 #if N_STATES > 0
-/* dx = f(x, u). */
-void model_derivatives(const ModelConst *c, const double *x, const double *u, double *dx);
 /* 0 when x is non-finite or a singular configuration. */
 int model_state_ok(const ModelConst *c, const double *x);
+/* Says why the derivatives at (t, x) are undefined (a requirement of the object or the mass matrix);
+ * returns 0 when it finds no reason. */
+int model_explain_singularity(const ModelConst *c, double t, const double *x, char *message, size_t size);
 /* Closed-form step over H with inputs u held; returns 0 when the model has none in this configuration. */
 int model_closed_form_step(const ModelConst *c, double H, const double *u, double *x);
 #endif
-/* Write all calculated outputs into real[], from the states and inputs already in real[] (and the
- * state derivatives dx, NULL for a model without states); returns 0 at a singular configuration. */
-int model_outputs(const ModelConst *c, const double *dx, double *real);
+/* Write all calculated outputs into real[] at time t, from the states and inputs already in real[]
+ * (and the state derivatives dx, NULL for a model without states); returns 0 at a singular
+ * configuration. */
+int model_outputs(const ModelConst *c, double t, const double *dx, double *real);
 /* rate[vr] = exact time derivative of every Real output vr; du are the input derivatives. */
-void model_output_rates(const ModelConst *c, const double *real, const double *dx, const double *du, double *rate);
+void model_output_rates(const ModelConst *c, double t, const double *real, const double *dx, const double *du,
+                        double *rate);
 /* Advance the inputs over a step of H using their derivatives (and, for positions, velocities). */
 void model_advance_inputs(double *real, const double *du, double H);
 

@@ -41,10 +41,11 @@ typedef struct {
     double du[INPUT_SLOTS];
     double t0;
     int inputs_vary;
+    int forces; /* some input is not zero or varies: the model computes its force terms */
     uint64_t evaluations;
     /* Whether a state is good enough to continue from (finite, not singular, finite outputs);
      * called only in checking passes, never in the hot loop. */
-    int (*acceptable)(const void *context, const double *x);
+    int (*acceptable)(const void *context, double t, const double *x);
     const void *context;
 } RightHandSide;
 

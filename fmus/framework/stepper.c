@@ -18,7 +18,7 @@ fmi2Status step_to(Instance *inst, double t, double H)
     model_advance_inputs(inst->s.real, inst->s.input_derivative, H);
     /* The outputs belong to the end of the step; a singular or overflowing end keeps the step from
      * happening. */
-    if (!model_outputs(&inst->constants, NULL, inst->s.real) || first_non_finite(inst->s.real, N_REAL) >= 0) {
+    if (!model_outputs(&inst->constants, t + H, NULL, inst->s.real) || first_non_finite(inst->s.real, N_REAL) >= 0) {
         memcpy(inst->s.real, before, sizeof before);
         inst->outputs_valid = 0;
         log_discard(inst, "fmi2DoStep: singular configuration or non-finite outputs at t = %.17g; "
@@ -50,21 +50,21 @@ static fmi2Status finish(Instance *inst, double t, double H_done, double t_reach
  * returns whether x is a state to continue from: finite and regular, with finite derivatives and
  * outputs. Costs a right-hand side and the outputs, so it runs once per communication step, or per
  * substep only when redoing a failed step. */
-static int evaluate_at(const Instance *inst, const double *x, double *real)
+static int evaluate_at(const Instance *inst, double t, const double *x, double *real)
 {
     double u[INPUT_SLOTS];
     if (!model_state_ok(&inst->constants, x)) return 0;
     memcpy(real, inst->s.real, N_REAL * sizeof(double));
     memcpy(real, x, N_STATES * sizeof(double));
     gather_inputs(inst, u);
-    model_derivatives(&inst->constants, x, u, real + N_STATES);
-    return model_outputs(&inst->constants, real + N_STATES, real) && first_non_finite(real, N_REAL) < 0;
+    model_derivatives(&inst->constants, t, x, u, real + N_STATES);
+    return model_outputs(&inst->constants, t, real + N_STATES, real) && first_non_finite(real, N_REAL) < 0;
 }
 
-int state_acceptable(const void *context, const double *x)
+int state_acceptable(const void *context, double t, const double *x)
 {
     double real[N_REAL];
-    return evaluate_at((const Instance *)context, x, real);
+    return evaluate_at((const Instance *)context, t, x, real);
 }
 
 /* Ends a successful step. When the inputs did not vary, the outputs the end-of-step check computed
@@ -103,10 +103,13 @@ fmi2Status step_to(Instance *inst, double t, double H)
     f.model = &inst->constants;
     gather_inputs(inst, f.u0);
     f.inputs_vary = 0;
+    f.forces = 0;
     for (i = 0; i < N_INPUTS; i++) {
         f.du[i] = s->input_derivative[i];
         if (f.du[i] != 0.0) f.inputs_vary = 1;
+        if (f.u0[i] != 0.0) f.forces = 1;
     }
+    if (f.inputs_vary) f.forces = 1;
     f.t0 = t;
     f.evaluations = 0;
     f.acceptable = state_acceptable;
@@ -117,7 +120,7 @@ fmi2Status step_to(Instance *inst, double t, double H)
         for (i = 0; i < N_INPUTS; i++) u_mid[i] = f.u0[i] + 0.5 * H * f.du[i];
         memcpy(closed, x, sizeof closed);
         if (model_closed_form_step(&inst->constants, H, u_mid, closed)) {
-            if (!evaluate_at(inst, closed, checked)) return fail(inst, t, t, "closed form", H);
+            if (!evaluate_at(inst, t + H, closed, checked)) return fail(inst, t, t, "closed form", H);
             memcpy(x, closed, sizeof closed);
             memory->n_steps++;
             return finish_with(inst, t, H, checked, f.inputs_vary);
@@ -131,7 +134,7 @@ fmi2Status step_to(Instance *inst, double t, double H)
         double reached;
         memcpy(x_start, x, sizeof x_start);
         reached = integrate_adaptive(&f, memory, x, t, t_end, h, s->real[VR_tol], 0);
-        if (!evaluate_at(inst, x, checked)) { /* outputs overflowed although the state stayed finite: redo, checking */
+        if (!evaluate_at(inst, reached, x, checked)) { /* outputs overflowed although the state stayed finite: redo, checking */
             memcpy(x, x_start, sizeof x_start);
             *memory = memory_start;
             reached = integrate_adaptive(&f, memory, x, t, t_end, h, s->real[VR_tol], 1);
@@ -167,7 +170,7 @@ fmi2Status step_to(Instance *inst, double t, double H)
         memcpy(x_start, x, sizeof x_start);
         memory_start = *memory;
         integrate_fixed(&f, solver, memory, x, t, hs, n, 0);
-        if (evaluate_at(inst, x, checked)) {
+        if (evaluate_at(inst, t + H, x, checked)) {
             memory->n_rhs += f.evaluations;
             return finish_with(inst, t, H, checked, f.inputs_vary);
         }

@@ -11,21 +11,16 @@
 /* Positions of INPUT_VRS: a_x a_y a_vx a_vy b_x b_y b_vx b_vy. */
 enum { IN_AX, IN_AY, IN_AVX, IN_AVY, IN_BX, IN_BY, IN_BVX, IN_BVY };
 
-void model_prepare(const double *real, const int32_t *integer, ModelConst *c)
+int model_prepare(const double *real, const int32_t *integer, ModelConst *c, char *message, size_t size)
 {
-    (void)integer;
+    (void)integer, (void)message, (void)size;
     c->k = real[VR_k];
     c->c = real[VR_c];
     c->l0 = real[VR_l0];
-}
-
-int model_check_parameters(const double *real, char *message, size_t size)
-{
-    (void)real, (void)message, (void)size;
     return 0;
 }
 
-int model_outputs(const ModelConst *c, const double *dx, double *real)
+int model_outputs(const ModelConst *c, double t, const double *dx, double *real)
 {
     const double dx_ = real[VR_b_x] - real[VR_a_x], dy = real[VR_b_y] - real[VR_a_y];
     const double dvx = real[VR_b_vx] - real[VR_a_vx], dvy = real[VR_b_vy] - real[VR_a_vy];
@@ -49,7 +44,8 @@ int model_outputs(const ModelConst *c, const double *dx, double *real)
     return ok;
 }
 
-void model_output_rates(const ModelConst *c, const double *real, const double *dx, const double *du, double *rate)
+void model_output_rates(const ModelConst *c, double t, const double *real, const double *dx, const double *du,
+                        double *rate)
 {
     const double px = real[VR_b_x] - real[VR_a_x], py = real[VR_b_y] - real[VR_a_y];
     const double vx = real[VR_b_vx] - real[VR_a_vx], vy = real[VR_b_vy] - real[VR_a_vy];

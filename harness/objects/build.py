@@ -1,0 +1,85 @@
+"""`harness derive`: an object file to a finished FMU, without CMake.
+
+Generates the model's C and model description (harness.objects.generate), the C header and
+documentation from that description (tools/fmu_codegen.py, as the CMake build does), compiles the
+framework and the model with the system's C compiler into the platform binary, and packs the FMU.
+Everything happens in a temporary folder that is removed also on errors; the FMU appears only
+when it is complete.
+"""
+from __future__ import annotations
+
+import os
+import shlex
+import shutil
+import subprocess
+import sys
+import tempfile
+import zipfile
+from dataclasses import dataclass
+from pathlib import Path
+
+from harness.errors import HarnessError
+from harness.objects.generate import generate
+from harness.objects.model_description import SOURCE_FILES
+from harness.objects.object_file import ObjectFileError
+
+PROJECT_ROOT = Path(__file__).resolve().parents[2]
+FRAMEWORK = PROJECT_ROOT / "fmus" / "framework"
+FRAMEWORK_HEADERS = ("fmi2_api.h", "framework.h", "integrators.h", "linear_model.h")
+# The flags of the CMake Release build: same code, same numbers.
+C_FLAGS = ("-std=c99", "-O3", "-DNDEBUG", "-fPIC", "-fvisibility=hidden", "-Wall", "-Wextra", "-Wno-unused-parameter")
+
+
+@dataclass
+class DerivedFmu:
+    identifier: str
+    path: Path
+
+
+def derive_fmu(object_file: str | Path, out: str | Path) -> DerivedFmu:
+    """Builds out/<identifier>.fmu from an object file. Raises HarnessError with one line."""
+    out = Path(out)
+    compiler = shlex.split(os.environ.get("CC", "cc"))
+    if shutil.which(compiler[0]) is None:
+        raise HarnessError(f"no C compiler: {compiler[0]} is not on PATH (set CC)")
+    with tempfile.TemporaryDirectory(prefix="derive-") as scratch:
+        work = Path(scratch)
+        try:
+            generated = generate(object_file, work / "generated")
+        except ObjectFileError as error:
+            raise HarnessError(str(error)) from None
+        folder = generated.folder
+        result = subprocess.run([sys.executable, str(PROJECT_ROOT / "tools" / "fmu_codegen.py"), "--out",
+                                 str(work / "generated"), "--models", str(PROJECT_ROOT / "fmus" / "models"),
+                                 "--sources", *SOURCE_FILES, "--xml", str(folder / "modelDescription.xml")],
+                                capture_output=True, text=True)
+        if result.returncode != 0:
+            raise HarnessError(f"{object_file}: the generated model description was refused: "
+                               f"{result.stderr.strip().splitlines()[-1]}")
+        fmu = work / "fmu"
+        sources = fmu / "sources"
+        binaries = fmu / "binaries" / "linux64"
+        for directory in (sources, binaries, fmu / "documentation"):
+            directory.mkdir(parents=True)
+        for name in SOURCE_FILES[:-1] + FRAMEWORK_HEADERS:
+            shutil.copy(FRAMEWORK / name, sources / name)
+        for name in ("physics.c", "physics.h", "model_description.h"):
+            shutil.copy(folder / name, sources / name)
+        shutil.copy(folder / "modelDescription.xml", fmu / "modelDescription.xml")
+        shutil.copy(folder / "documentation" / "index.html", fmu / "documentation" / "index.html")
+        library = binaries / f"{generated.identifier}.so"
+        command = [*compiler, *C_FLAGS, "-shared", f"-I{sources}", "-o", str(library),
+                   *(str(sources / name) for name in SOURCE_FILES), "-lm"]
+        result = subprocess.run(command, capture_output=True, text=True)
+        if result.returncode != 0:
+            first = next((line for line in result.stderr.splitlines() if "error" in line), result.stderr.strip())
+            raise HarnessError(f"{object_file}: compiling the generated C failed: {first}")
+        out.mkdir(parents=True, exist_ok=True)
+        partial = work / f"{generated.identifier}.fmu"
+        with zipfile.ZipFile(partial, "w", zipfile.ZIP_DEFLATED) as archive:
+            for path in sorted(fmu.rglob("*")):
+                if path.is_file():
+                    archive.write(path, path.relative_to(fmu).as_posix())
+        target = out / f"{generated.identifier}.fmu"
+        shutil.move(str(partial), target)
+    return DerivedFmu(generated.identifier, target)

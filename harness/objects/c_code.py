@@ -1,0 +1,484 @@
+"""The C physics of an object from its derivation: physics.h (constants and the right-hand side,
+inlined into the integrators) and physics.c (start-up, outputs, output derivatives).
+
+What the generated code does, and why:
+* parameter-only subexpressions are computed once when the parameters are known (model_prepare);
+* common subexpressions are eliminated (SymPy's cse) within each function;
+* M a = f + Q is solved by an LDL^T factorization unrolled for the object's size, skipping entries
+  that are zero for every state; a pivot that is not positive means M is not positive definite
+  there: the derivatives become NaN, which the framework turns into fmi2Error at initialization and
+  fmi2Discard in a step;
+* the generalized forces are computed only when the framework passes inputs (u != NULL): with the
+  force inputs zero and without derivatives, it passes NULL and the force terms vanish after inlining.
+"""
+from __future__ import annotations
+
+import re
+from dataclasses import dataclass, field
+
+import sympy as sp
+from sympy.printing.c import C99CodePrinter
+
+from harness.objects.derivation import Derivation, total_derivative
+from harness.objects.object_file import FRAMEWORK_PARAMETERS
+
+
+class _Printer(C99CodePrinter):
+    """Small integer powers as products, as a person would write them."""
+
+    def _print_Pow(self, expr):
+        base, exponent = expr.args
+        if exponent.is_Integer and 2 <= int(exponent) <= 4:
+            b = self.parenthesize(base, 100)
+            return "(" + "*".join([b] * int(exponent)) + ")"
+        if exponent.is_Integer and -4 <= int(exponent) <= -1:
+            b = self.parenthesize(base, 100)
+            return "(1.0/(" + "*".join([b] * -int(exponent)) + "))"
+        if exponent == sp.Rational(1, 2):
+            return f"sqrt({self._print(base)})"
+        if exponent == sp.Rational(-1, 2):
+            return f"(1.0/sqrt({self._print(base)}))"
+        return super()._print_Pow(expr)
+
+
+_PRINTER = _Printer()
+
+
+def c_expr(expr) -> str:
+    return _PRINTER.doprint(sp.sympify(expr))
+
+
+@dataclass
+class _Names:
+    """SymPy symbols standing for C lvalues: c->p_<parameter>, s_<state>, u[k], t."""
+    mapping: dict[sp.Symbol, sp.Symbol] = field(default_factory=dict)
+
+    def to_c(self, expr):
+        return sp.sympify(expr).xreplace(self.mapping)
+
+
+class _Constants:
+    """Parameter-only subexpressions, hoisted into ModelConst and computed in model_prepare."""
+
+    def __init__(self, parameters: set[sp.Symbol]):
+        self.parameters = parameters
+        self.known: dict[sp.Expr, sp.Symbol] = {}
+        self.definitions: list[tuple[sp.Symbol, sp.Expr]] = []
+
+    def is_constant(self, expr) -> bool:
+        return expr.free_symbols <= self.parameters
+
+    def symbol_for(self, expr) -> sp.Expr:
+        if expr.is_Atom:
+            return expr
+        if expr not in self.known:
+            symbol = sp.Symbol(f"c->k[{len(self.definitions)}]", real=True)
+            self.known[expr] = symbol
+            self.definitions.append((symbol, expr))
+            self.parameters = self.parameters | {symbol}
+        return self.known[expr]
+
+    def hoist(self, expr):
+        expr = sp.sympify(expr)
+        if expr.is_Atom:
+            return expr
+        if self.is_constant(expr):
+            return self.symbol_for(expr)
+        if isinstance(expr, (sp.Add, sp.Mul)):
+            constant = [a for a in expr.args if self.is_constant(a)]
+            varying = [self.hoist(a) for a in expr.args if not self.is_constant(a)]
+            if len(constant) > 1 or (constant and not constant[0].is_Atom):
+                return expr.func(self.symbol_for(expr.func(*constant)), *varying)
+            return expr.func(*constant, *varying)
+        return expr.func(*[self.hoist(a) for a in expr.args])
+
+
+def _cse_lines(expressions, prefix: str, indent: str = "    "):
+    """Common subexpressions of expressions as C declarations; returns (lines, reduced expressions)."""
+    replacements, reduced = sp.cse(list(expressions), symbols=sp.numbered_symbols(prefix, real=True),
+                                   optimizations="basic")
+    lines = [f"{indent}const double {symbol} = {c_expr(value)};" for symbol, value in replacements]
+    return lines, reduced, replacements
+
+
+def _reuse(expressions, replacements):
+    """Rewrite expressions in terms of already computed common subexpressions where they match."""
+    result = []
+    for expr in expressions:
+        for symbol, value in replacements:
+            expr = expr.xreplace({value: symbol})
+        result.append(expr)
+    return result
+
+
+@dataclass
+class GeneratedC:
+    header: str
+    source: str
+
+
+def generate_c(derivation: Derivation) -> GeneratedC:
+    spec = derivation.spec
+    n = derivation.n
+    names = _Names()
+    parameters = [p for p in spec.parameters if p.name not in FRAMEWORK_PARAMETERS]
+    for p in parameters:
+        names.mapping[spec.symbols[p.name]] = sp.Symbol(f"c->p_{p.name}", real=True)
+    for j, c in enumerate(spec.coordinates):
+        names.mapping[spec.symbols[c.name]] = sp.Symbol(f"s_{c.name}", real=True)
+        names.mapping[spec.symbols[c.velocity]] = sp.Symbol(f"s_{c.velocity}", real=True)
+    for k, F in enumerate(derivation.inputs):
+        names.mapping[F] = sp.Symbol(f"u[{k}]", real=True)
+    names.mapping[spec.time] = sp.Symbol("t", real=True)
+    accelerations = [sp.Symbol(f"a_{j}", real=True) for j in range(n)]
+    constants = _Constants({names.mapping[spec.symbols[p.name]] for p in parameters})
+
+    def prepared(expr):
+        return constants.hoist(names.to_c(expr))
+
+    state_locals = [f"    const double s_{c.name} = x[{j}];" for j, c in enumerate(spec.coordinates)] + \
+                   [f"    const double s_{c.velocity} = x[{n + j}];" for j, c in enumerate(spec.coordinates)]
+    has_linear = derivation.linear is not None
+    nf = len(derivation.inputs)
+
+    # ---- right-hand side
+    body: list[str] = []
+    requirements = [prepared(r) for r in spec.require]
+    for k, requirement in enumerate(requirements):
+        body.append(f"    if (!({c_expr(requirement)} > 0.0)) goto singular; /* require[{k}] */")
+    upper = [(i, j) for i in range(n) for j in range(i + 1)]
+    mass = [prepared(derivation.M[i, j]) for i, j in upper]
+    diagonal = all(derivation.M[i, j] == 0 for i, j in upper if i != j)
+    forces_q = list(derivation.Q)
+    forcing_f = list(derivation.f)
+    pivots: list[sp.Expr] = []
+    if diagonal:
+        # M a = b solves entry by entry: the division goes into the expressions, where constant
+        # factors fold into the hoisted constants.
+        for j in range(n):
+            inverse = 1 / derivation.M[j, j]
+            forcing_f[j] = forcing_f[j] * inverse
+            forces_q[j] = forces_q[j] * inverse
+            if not constants.is_constant(prepared(derivation.M[j, j])):
+                pivots.append(prepared(derivation.M[j, j]))
+    states = set(spec.q) | set(spec.v) | {spec.time}
+    forcing_f = [_tidy(e, states) for e in forcing_f]
+    forces_q = [_tidy(e, states) for e in forces_q]
+    forcing = [prepared(e) for e in forcing_f]
+    lines, reduced, replacements = _cse_lines(pivots + mass + forcing, "w")
+    body += lines
+    for k, pivot in enumerate(reduced[:len(pivots)]):
+        body.append(f"    if (!({c_expr(pivot)} > 0.0)) goto singular; /* M not positive definite here */")
+    reduced = reduced[len(pivots):]
+    mass_c = dict(zip(upper, reduced[:len(upper)]))
+    for j in range(n):
+        body.append(f"    double b{j} = {c_expr(reduced[len(upper) + j])};")
+    if nf:
+        forces = _reuse([prepared(e) for e in forces_q], replacements)
+        force_lines, force_reduced, _ = _cse_lines(forces, "z", indent="        ")
+        body.append("    if (u) {")
+        body += force_lines
+        body += [f"        b{j} += {c_expr(e)};" for j, e in enumerate(force_reduced) if e != 0]
+        body.append("    }")
+    if diagonal:
+        factor_lines, factor_constants = [f"    const double a{j} = b{j};" for j in range(n)], []
+        constant_pivots = [(j, c_expr(m)) for j, m in enumerate(mass_c[(j, j)] for j in range(n))
+                           if constants.is_constant(m)]
+        constant_factor_lines = []
+    else:
+        factor_lines, constant_pivots, constant_factor_lines, factor_constants = _ldl_solve(n, mass_c)
+    body += factor_lines
+    body += [f"    dx[{j}] = s_{c.velocity};" for j, c in enumerate(spec.coordinates)]
+    body += [f"    dx[{n + j}] = a{j} - c->d * s_{c.velocity};" for j, c in enumerate(spec.coordinates)]
+    if any("goto singular" in line for line in body):
+        body += ["    return;", "singular:", f"    {{ int i; for (i = 0; i < {2 * n}; i++) dx[i] = NAN; }}"]
+    body = _with_locals(state_locals, body)
+    if has_linear:
+        body = ["    if (c->linear) {", "        linear_model_derivatives(&c->lin, c->d, x, u, dx);",
+                "        return;", "    }"] + body
+
+    # ---- outputs
+    out_exprs, out_targets = [], []
+    for point, position, velocity in zip(spec.points, derivation.positions, derivation.velocities):
+        for axis, value in zip("xyz", position):
+            out_targets.append(point.outputs[axis])
+            out_exprs.append(value)
+        if point.velocity:
+            for axis, value in zip("xyz", velocity):
+                out_targets.append(point.outputs[f"v_{axis}"])
+                out_exprs.append(value)
+    energies = [derivation.T, derivation.U]
+    out_lines, out_reduced, _ = _cse_lines([prepared(e) for e in out_exprs + energies], "w")
+    real_locals = [f"    const double s_{c.name} = real[VR_{c.name}];" for c in spec.coordinates] + \
+                  [f"    const double s_{c.velocity} = real[VR_{c.velocity}];" for c in spec.coordinates]
+    outputs_body = list(out_lines)
+    outputs_body += [f"    real[VR_{name}] = {c_expr(e)};" for name, e in zip(out_targets, out_reduced)]
+    outputs_body += [f"    real[VR_E_kin] = {c_expr(out_reduced[-2])};", f"    real[VR_E_pot] = {c_expr(out_reduced[-1])};"]
+    if has_linear:
+        outputs_body += ["    if (c->linear) linear_model_energies(&c->lin, real, dx, &real[VR_E_kin], &real[VR_E_pot], "
+                         "NULL, NULL);"]
+    outputs_body.append("    real[VR_E] = real[VR_E_kin] + real[VR_E_pot];")
+    outputs_body = _with_locals(real_locals, outputs_body)
+
+    # ---- output derivatives
+    q, v, t = spec.q, spec.v, spec.time
+    names.mapping.update({a: sp.Symbol(f"dx[{n + j}]", real=True) for j, a in enumerate(accelerations)})
+    rate_exprs, rate_targets = [], []
+    for point, position, velocity in zip(spec.points, derivation.positions, derivation.velocities):
+        for axis, value in zip("xyz", velocity):
+            rate_targets.append(point.outputs[axis])
+            rate_exprs.append(value)
+        if point.velocity:
+            for axis, value in zip("xyz", velocity):
+                rate_targets.append(point.outputs[f"v_{axis}"])
+                rate_exprs.append(total_derivative(value, q, v, accelerations, t))
+    energy_rates = [total_derivative(derivation.T, q, v, accelerations, t),
+                    total_derivative(derivation.U, q, v, accelerations, t)]
+    rate_lines, rate_reduced, _ = _cse_lines([prepared(e) for e in rate_exprs + energy_rates], "w")
+    rates_body = list(rate_lines)
+    rates_body += [f"    rate[VR_{name}] = {c_expr(e)};" for name, e in zip(rate_targets, rate_reduced)]
+    rates_body += [f"    rate[VR_E_kin] = {c_expr(rate_reduced[-2])};", f"    rate[VR_E_pot] = {c_expr(rate_reduced[-1])};"]
+    if has_linear:
+        rates_body += ["    if (c->linear) linear_model_energies(&c->lin, real, dx, NULL, NULL, &rate[VR_E_kin], "
+                       "&rate[VR_E_pot]);"]
+    rates_body.append("    rate[VR_E] = rate[VR_E_kin] + rate[VR_E_pot];")
+    rates_body = _with_locals(real_locals, rates_body)
+
+    # ---- model_prepare
+    prepare = [f"    c->p_{p.name} = real[VR_{p.name}];" for p in parameters]
+    prepare.append("    c->d = real[VR_d];")
+    prepare += [f"    {c_expr(symbol)} = {c_expr(value)};" for symbol, value in constants.definitions]
+    prepare += constant_factor_lines
+    for j, pivot in constant_pivots:
+        prepare += [f"    if (!({pivot} > 0.0)) {{",
+                    f'        snprintf(message, size, "the mass matrix d2T/dv2 is not positive definite for these '
+                    f'parameters (pivot {j + 1} of its factorization = %g)", {pivot});',
+                    "        return 1;", "    }"]
+    if has_linear:
+        lin = derivation.linear
+        prepare.append("    c->linear = integer[INT_model] == MODEL_LINEAR;")
+        prepare.append("    {")
+        prepare.append(f"        double M0[{n * n}], K0[{n * n}], B0[{max(1, n * nf)}];")
+        prepare.append(f"        const double rest[{n}] = {{{', '.join(c_expr(names.to_c(r)) for r in lin.rest)}}};")
+        for i in range(n):
+            for j in range(n):
+                prepare.append(f"        M0[{i * n + j}] = {c_expr(names.to_c(lin.M0[i, j]))};")
+                prepare.append(f"        K0[{i * n + j}] = {c_expr(names.to_c(lin.K0[i, j]))};")
+            for k in range(nf):
+                prepare.append(f"        B0[{i * nf + k}] = {c_expr(names.to_c(lin.B0[i, k]))};")
+        prepare.append(f"        if (linear_model_prepare(&c->lin, M0, K0, B0, rest, {c_expr(names.to_c(lin.U0))}, "
+                       "message, size) && c->linear) return 1;")
+        prepare.append("    }")
+    prepare.append("    return 0;")
+
+    # ---- state check and explanation
+    checks = " && ".join(f"isfinite(x[{i}])" for i in range(2 * n))
+    ok_body = [f"    if (!({checks})) return 0;"]
+    for requirement in requirements:
+        ok_body.append(f"    if (!({c_expr(requirement)} > 0.0)) return 0;")
+    ok_body.append("    return 1;")
+    ok_body = _with_locals(state_locals, ok_body)
+
+    explain = []
+    for k, (requirement, text) in enumerate(zip(requirements, spec.require)):
+        explain += [f"    if (!({c_expr(requirement)} > 0.0)) {{",
+                    f'        snprintf(message, size, "{_c_string(str(text))} = %g must stay > 0 (require[{k}] of the '
+                    f'object file)", {c_expr(requirement)});', "        return 1;", "    }"]
+    explain_mass, explain_reduced, _ = _cse_lines(mass, "w")
+    explain += explain_mass
+    explain += _pivot_report(n, dict(zip(upper, explain_reduced)))
+    explain.append("    return 0;")
+    explain = _with_locals(state_locals, explain)
+
+    header = _HEADER.format(
+        identifier=spec.identifier, n=n, nf=nf, has_linear=1 if has_linear else 0,
+        parameter_fields="".join(f" p_{p.name}," for p in parameters).rstrip(","),
+        n_constants=max(1, len(constants.definitions)),
+        factor_fields="".join(f"    double {name};\n" for name in factor_constants),
+        linear_field="    int linear;\n    LinearModel lin;\n" if has_linear else "",
+        derivatives="\n".join(body), file=spec.path.name)
+    source = _SOURCE.format(
+        identifier=spec.identifier, file=spec.path.name, prepare="\n".join(prepare), state_ok="\n".join(ok_body),
+        explain="\n".join(explain), outputs="\n".join(outputs_body), rates="\n".join(rates_body),
+        closed_form=("    if (!c->linear) return 0;\n    linear_model_step(&c->lin, c->d, H, u, x);\n    return 1;"
+                     if has_linear else "    (void)c, (void)H, (void)u, (void)x;\n    return 0;"))
+    return GeneratedC(header, source)
+
+
+def _tidy(expr, states: set[sp.Symbol]):
+    """Cancels common factors of a quotient and gathers the terms of each function of the state,
+    so that parameter factors fold into one hoisted constant (k*sin(phi), not k1*sin(phi) + k2*sin(phi))."""
+    numerator, denominator = sp.fraction(sp.cancel(sp.sympify(expr)))
+    atoms = sorted((a for a in numerator.atoms(sp.Function) if a.free_symbols & states), key=sp.default_sort_key)
+    numerator = sp.collect(sp.expand(numerator), atoms)
+    return numerator / denominator
+
+
+def _with_locals(declarations: list[str], lines: list[str]) -> list[str]:
+    """The declarations whose variable the lines use, then the lines (no unused-variable warnings)."""
+    text = "\n".join(lines)
+    used = [d for d in declarations if re.search(rf"\b{d.split()[2]}\b", text)]
+    return used + lines
+
+
+def _c_string(text: str) -> str:
+    return text.replace("\\", "\\\\").replace('"', '\\"').replace("%", "%%")
+
+
+def _ldl_solve(n: int, mass: dict[tuple[int, int], sp.Expr]):
+    """Unrolled LDL^T factorization and solve of M a = b. Factor entries that depend only on
+    constants move to model_prepare. Returns (runtime lines, constant pivots, prepare lines)."""
+    constant_names: set[str] = set()
+    runtime: list[str] = []
+    prepare: list[str] = []
+    constant_pivots: list[tuple[int, str]] = []
+    L: dict[tuple[int, int], str | None] = {}
+    D: dict[int, str] = {}
+
+    def is_const(expr_text_symbols: set[str]) -> bool:
+        return all(s in constant_names for s in expr_text_symbols)
+
+    def entry(i, j):
+        value = mass[(max(i, j), min(i, j))]
+        return value
+
+    def deps(expr) -> set[str]:
+        return {str(s) for s in sp.sympify(expr).free_symbols}
+
+    def emit(name: str, expr, constant_ok: bool = True):
+        text = c_expr(expr)
+        if constant_ok and all(s.startswith("c->") or s in constant_names for s in deps(expr)):
+            constant_names.add(name)
+            prepare.append(f"    c->{name} = {text};")
+            return f"c->{name}"
+        runtime.append(f"    const double {name} = {text};")
+        return name
+
+    # Factorization: names are plain symbols so that later steps can refer to them.
+    sym = {}
+    for j in range(n):
+        value = entry(j, j)
+        for k in range(j):
+            if L.get((j, k)) is not None:
+                value = value - sym[L[(j, k)]] ** 2 * sym[D[k]]
+        D[j] = emit(f"D{j}", value)
+        sym[D[j]] = sp.Symbol(D[j], real=True)
+        if D[j].startswith("c->"):
+            constant_pivots.append((j, D[j]))
+        else:
+            runtime.append(f"    if (!({D[j]} > 0.0)) goto singular; /* M not positive definite here */")
+        inverse = emit(f"iD{j}", 1 / sym[D[j]])
+        sym[inverse] = sp.Symbol(inverse, real=True)
+        D[(j, "inv")] = inverse
+        for i in range(j + 1, n):
+            value = entry(i, j)
+            for k in range(j):
+                if L.get((i, k)) is not None and L.get((j, k)) is not None:
+                    value = value - sym[L[(i, k)]] * sym[L[(j, k)]] * sym[D[k]]
+            value = sp.sympify(value)
+            if value == 0:
+                L[(i, j)] = None
+                continue
+            L[(i, j)] = emit(f"L{i}{j}", value * sym[inverse])
+            sym[L[(i, j)]] = sp.Symbol(L[(i, j)], real=True)
+    # Solve: forward (unit lower), diagonal, backward.
+    for i in range(n):
+        terms = "".join(f" - {L[(i, k)]} * y{k}" for k in range(i) if L.get((i, k)) is not None)
+        runtime.append(f"    const double y{i} = b{i}{terms};")
+    for i in reversed(range(n)):
+        terms = "".join(f" - {L[(k, i)]} * a{k}" for k in range(i + 1, n) if L.get((k, i)) is not None)
+        runtime.append(f"    const double a{i} = y{i} * {D[(i, 'inv')]}{terms};")
+    return runtime, constant_pivots, prepare, sorted(constant_names)
+
+
+def _pivot_report(n: int, mass: dict[tuple[int, int], sp.Expr]) -> list[str]:
+    """Cold-path LDL^T pivots for the explanation of a singular state."""
+    lines = [f"    double M[{n}][{n}], D[{n}], L[{n}][{n}];", "    int i, j, k;"]
+    for (i, j), value in mass.items():
+        lines.append(f"    M[{i}][{j}] = {c_expr(value)};" if i == j else f"    M[{i}][{j}] = M[{j}][{i}] = {c_expr(value)};")
+    lines += [f"    for (j = 0; j < {n}; j++) {{",
+              "        D[j] = M[j][j];",
+              "        for (k = 0; k < j; k++) D[j] -= L[j][k] * L[j][k] * D[k];",
+              "        if (!(D[j] > 0.0)) {",
+              '            snprintf(message, size, "the mass matrix d2T/dv2 is not positive definite here (pivot %d '
+              'of its factorization = %g)", j + 1, D[j]);',
+              "            return 1;", "        }",
+              f"        for (i = j + 1; i < {n}; i++) {{",
+              "            L[i][j] = M[i][j];",
+              "            for (k = 0; k < j; k++) L[i][j] -= L[i][k] * L[j][k] * D[k];",
+              "            L[i][j] /= D[j];", "        }", "    }"]
+    return lines
+
+
+_HEADER = """/* {identifier}: generated from modelDescription/{file} by harness.objects. Do not edit: edit the object file. */
+#ifndef PHYSICS_H
+#define PHYSICS_H
+
+#include <math.h>
+#include <stddef.h>
+
+#define N_COORDINATES {n}
+#define N_FORCE_INPUTS {nf}
+#define HAS_LINEAR_MODEL {has_linear}
+#include "linear_model.h"
+
+/* Parameters (p_), the damping d and parameter-only subexpressions (k), set by model_prepare. */
+typedef struct {{
+    double{parameter_fields};
+    double d;
+    double k[{n_constants}];
+{factor_fields}{linear_field}}} ModelConst;
+
+/* dx = f(t, x, u): x = (q, v), dx = (v, a). u == NULL means every force input is zero. Inlined into
+ * the integrators' loops. */
+static inline void model_derivatives(const ModelConst *c, double t, const double *x, const double *u, double *dx)
+{{
+{derivatives}
+}}
+
+#endif
+"""
+
+_SOURCE = """/* {identifier}: generated from modelDescription/{file} by harness.objects. Do not edit: edit the object file. */
+#include <math.h>
+#include <stdio.h>
+
+#include "framework.h"
+
+int model_prepare(const double *real, const int32_t *integer, ModelConst *c, char *message, size_t size)
+{{
+    (void)integer;
+{prepare}
+}}
+
+int model_state_ok(const ModelConst *c, const double *x)
+{{
+    (void)c;
+{state_ok}
+}}
+
+int model_explain_singularity(const ModelConst *c, double t, const double *x, char *message, size_t size)
+{{
+{explain}
+}}
+
+int model_closed_form_step(const ModelConst *c, double H, const double *u, double *x)
+{{
+{closed_form}
+}}
+
+int model_outputs(const ModelConst *c, double t, const double *dx, double *real)
+{{
+{outputs}
+    return 1;
+}}
+
+void model_output_rates(const ModelConst *c, double t, const double *real, const double *dx, const double *du,
+                        double *rate)
+{{
+    (void)du;
+{rates}
+}}
+
+void model_advance_inputs(double *real, const double *du, double H) {{ advance_inputs_linearly(real, du, H); }}
+"""

@@ -1,0 +1,147 @@
+"""Lagrange's equations of the second kind for an object file, by SymPy.
+
+With p = dT/dv the momenta, d/dt p - dL/dq = Q and T quadratic in the velocities v:
+
+    M(q, t) a = f(q, v, t) + Q(q, t, F),   M = d2T/dv2,
+    f = dL/dq - (dp/dq) v - dp/dt,         Q_j = sum over forces F . dr/dq_j,
+
+then the framework's damping a_j -= d v_j. The mass matrix is left to a factorization in the
+generated C, so no symbolic inverse is ever formed. Trigonometric functions of sums are expanded
+first, so that only sines and cosines of single coordinates remain (a compiler pairs each into one
+sincos call).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import sympy as sp
+
+from harness.objects.object_file import FRAMEWORK_PARAMETERS, ObjectFileError, ObjectSpec
+
+
+@dataclass
+class LinearModel:
+    """The quadratic approximation of T and U about the rest state: M0 a + K0 (q - rest) = B0 F."""
+    rest: list[sp.Expr]    # parameters only
+    M0: sp.Matrix          # n x n, parameters only
+    K0: sp.Matrix          # n x n, parameters only
+    B0: sp.Matrix          # n x (force inputs), generalized force per input at rest
+    U0: sp.Expr            # U at rest
+
+
+@dataclass
+class Derivation:
+    spec: ObjectSpec
+    M: sp.Matrix                       # n x n
+    f: sp.Matrix                       # n, without forces and damping
+    Q: sp.Matrix                       # n, generalized forces, linear in the force inputs
+    inputs: list[sp.Symbol]            # force inputs, in variable order
+    positions: list[list[sp.Expr]]     # per point
+    velocities: list[list[sp.Expr]]    # per point
+    T: sp.Expr
+    U: sp.Expr
+    linear: LinearModel | None
+    linear_reason: str                 # why there is no linear model (empty when there is one)
+
+    @property
+    def n(self) -> int:
+        return len(self.spec.coordinates)
+
+
+def _expand(expr: sp.Expr) -> sp.Expr:
+    return sp.expand_trig(expr)
+
+
+def total_derivative(expr: sp.Expr, q, v, a, t) -> sp.Expr:
+    """d/dt of expr(q, v, t) along a motion with accelerations a."""
+    result = sp.diff(expr, t)
+    for qj, vj, aj in zip(q, v, a):
+        result += sp.diff(expr, qj) * vj + sp.diff(expr, vj) * aj
+    return result
+
+
+def derive(spec: ObjectSpec) -> Derivation:
+    q, v, t = spec.q, spec.v, spec.time
+    T, U = _expand(spec.T), _expand(spec.U)
+    M = sp.hessian(T, v)
+    velocity_set = set(v)
+    if any(entry.free_symbols & velocity_set for entry in M):
+        raise ObjectFileError(f"{spec.path}: energy.T: T is not quadratic in the velocities "
+                              f"(its second derivatives in {', '.join(map(str, v))} still depend on them)")
+    _check_positive(spec, M)
+    L = T - U
+    p = [sp.diff(T, vj) for vj in v]
+    f = []
+    for j, qj in enumerate(q):
+        dp = sp.diff(p[j], t) + sum(sp.diff(p[j], qk) * vk for qk, vk in zip(q, v))
+        f.append(sp.diff(L, qj) - dp)
+    inputs: list[sp.Symbol] = []
+    Q = [sp.Integer(0)] * len(q)
+    point_by_name = {pt.name: pt for pt in spec.points}
+    for force in spec.forces:
+        position = [_expand(x) for x in point_by_name[force.point].position]
+        for axis, name in force.inputs.items():
+            F = spec.symbols[name]
+            inputs.append(F)
+            coordinate = position["xyz".index(axis)]
+            for j, qj in enumerate(q):
+                Q[j] += F * sp.diff(coordinate, qj)
+    positions = [[_expand(x) for x in pt.position] for pt in spec.points]
+    velocities = [[sp.diff(x, t) + sum(sp.diff(x, qj) * vj for qj, vj in zip(q, v)) for x in pos]
+                  for pos in positions]
+    linear, reason = _linearize(spec, M, T, U, Q, inputs)
+    return Derivation(spec, M, sp.Matrix(f), sp.Matrix(Q), inputs, positions, velocities, T, U, linear, reason)
+
+
+def _start_values(spec: ObjectSpec) -> dict[sp.Symbol, float]:
+    values = {spec.symbols[p.name]: p.start for p in spec.parameters if p.name not in FRAMEWORK_PARAMETERS}
+    values.update({spec.symbols[c.name]: c.start for c in spec.coordinates})
+    values.update({spec.symbols[c.velocity]: c.velocity_start for c in spec.coordinates})
+    values[spec.time] = 0.0
+    return values
+
+
+def _numeric(matrix: sp.Matrix, values: dict) -> np.ndarray:
+    return np.array(matrix.subs(values).evalf(), dtype=float)
+
+
+def _check_positive(spec: ObjectSpec, M: sp.Matrix) -> None:
+    """T must be positive in the velocities: M positive definite at the start values."""
+    try:
+        numeric = _numeric(M, _start_values(spec))
+    except (TypeError, ValueError):
+        raise ObjectFileError(f"{spec.path}: energy.T: the mass matrix d2T/dv2 is not a finite real matrix at the "
+                              f"start values") from None
+    if not np.all(np.isfinite(numeric)):
+        raise ObjectFileError(f"{spec.path}: energy.T: the mass matrix d2T/dv2 is not finite at the start values")
+    eigenvalues = np.linalg.eigvalsh(0.5 * (numeric + numeric.T))
+    if eigenvalues.min() <= 1e-12 * max(1.0, abs(eigenvalues).max()):
+        raise ObjectFileError(f"{spec.path}: energy.T: T is not positive in the velocities at the start values (the "
+                              f"mass matrix d2T/dv2 has eigenvalue {eigenvalues.min():.3g})")
+
+
+def _linearize(spec: ObjectSpec, M: sp.Matrix, T: sp.Expr, U: sp.Expr, Q: list[sp.Expr],
+               inputs: list[sp.Symbol]) -> tuple[LinearModel | None, str]:
+    q, v, t = spec.q, spec.v, spec.time
+    if spec.rheonomic:
+        return None, "the object is driven (t appears in its energies or points)"
+    at_rest = {qj: spec.rest[c.name] for qj, c in zip(q, spec.coordinates)}
+    zero_v = {vj: 0 for vj in v}
+    gradient = [sp.simplify(sp.diff(U, qj).subs(at_rest)) for qj in q]
+    if any(g != 0 for g in gradient):
+        return None, "the rest state is not an equilibrium (dU/dq is not zero there)"
+    if any(sp.simplify(sp.diff(T, vj).subs(zero_v)) != 0 for vj in v):
+        return None, "T has terms linear in the velocities"
+    M0 = M.subs(at_rest)
+    K0 = sp.hessian(U, q).subs(at_rest)
+    values = _start_values(spec)
+    inertia = np.linalg.eigvalsh(_numeric(M0, values))
+    if inertia.min() <= 1e-12 * max(1.0, abs(inertia).max()):
+        return None, "the mass matrix is singular at the rest state (a coordinate singularity)"
+    stiffness = np.linalg.eigvalsh(_numeric(K0, values))
+    if stiffness.min() < -1e-12 * max(1.0, abs(stiffness).max()):
+        return None, f"the rest state is unstable (a stiffness eigenvalue is {stiffness.min():.3g})"
+    B0 = sp.Matrix(len(q), len(inputs), lambda j, k: sp.diff(Q[j], inputs[k]).subs(at_rest))
+    U0 = U.subs(at_rest)
+    return LinearModel([spec.rest[c.name] for c in spec.coordinates], sp.Matrix(M0), sp.Matrix(K0), B0, U0), ""

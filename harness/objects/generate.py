@@ -1,0 +1,69 @@
+"""An object file to the files the build compiles: physics.h, physics.c, modelDescription.xml and
+the equations section of the documentation.
+
+    python -m harness.objects.generate OBJECT.toml --out DIR    writes DIR/<identifier>/...
+"""
+from __future__ import annotations
+
+import argparse
+import sys
+from dataclasses import dataclass
+from pathlib import Path
+
+from harness.objects.c_code import generate_c
+from harness.objects.derivation import Derivation, derive
+from harness.objects.documentation import equations_html
+from harness.objects.model_description import model_description
+from harness.objects.object_file import ObjectFileError, read_object_file
+
+
+@dataclass
+class GeneratedObject:
+    identifier: str
+    folder: Path
+    derivation: Derivation
+
+
+def _write_if_changed(path: Path, text: str) -> None:
+    # unchanged files keep their timestamps, so make rebuilds nothing
+    if not path.exists() or path.read_text() != text:
+        path.write_text(text)
+
+
+def generate(object_file: str | Path, out: str | Path) -> GeneratedObject:
+    spec = read_object_file(object_file)
+    derivation = derive(spec)
+    code = generate_c(derivation)
+    xml = model_description(derivation)
+    folder = Path(out) / spec.identifier
+    folder.mkdir(parents=True, exist_ok=True)
+    _write_if_changed(folder / "physics.h", code.header)
+    _write_if_changed(folder / "physics.c", code.source)
+    _write_if_changed(folder / "modelDescription.xml", xml)
+    _write_if_changed(folder / "equations.html", equations_html(derivation))
+    return GeneratedObject(spec.identifier, folder, derivation)
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description="Generate an object's C physics and model description.")
+    parser.add_argument("objects", nargs="+", type=Path)
+    parser.add_argument("--out", required=True, type=Path)
+    parser.add_argument("--identifier-is-file-name", action="store_true",
+                        help="refuse an object whose identifier differs from its file name (the registry's rule)")
+    args = parser.parse_args(argv)
+    try:
+        for path in args.objects:
+            if args.identifier_is_file_name:
+                spec = read_object_file(path)
+                if spec.identifier != path.stem:
+                    raise ObjectFileError(f"{path}: identifier: {spec.identifier!r} must equal the file name "
+                                          f"{path.stem!r} in the objects folder")
+            generate(path, args.out)
+    except ObjectFileError as error:
+        print(f"error: {error}", file=sys.stderr)
+        return 2
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,246 @@
+"""The FMI 2.0 model description of an object, from its object file.
+
+Layout (the framework relies on it, and tools/fmu_codegen.py checks it): Real value references
+dense from 0 with the states first (coordinates, then velocities), their derivatives next, then
+parameters in file order (with the framework's d, h and tol where the file restates them, else
+appended), force inputs, point outputs, E_kin, E_pot, E; then the Integers: solver, model (when the
+object has a linear model), n_rhs, n_steps, n_rejected.
+"""
+from __future__ import annotations
+
+import re
+import uuid
+from dataclasses import dataclass
+from xml.sax.saxutils import quoteattr
+
+from harness.objects.derivation import Derivation
+from harness.methods import METHODS, SOLVERS
+from harness.objects.object_file import FRAMEWORK_PARAMETERS, ObjectFileError
+
+SOURCE_FILES = ("fmi2_functions.c", "stepper.c", "integrators.c", "linear_model.c", "physics.c")
+BASE = {"m": {"m": 1}, "kg": {"kg": 1}, "s": {"s": 1}, "rad": {"rad": 1}, "N": {"kg": 1, "m": 1, "s": -2},
+        "J": {"kg": 1, "m": 2, "s": -2}, "W": {"kg": 1, "m": 2, "s": -3}, "Hz": {"s": -1}, "1": {},
+        "deg": {"rad": 1}, "A": {"A": 1}, "K": {"K": 1}}
+FACTOR = {"deg": 0.017453292519943295}
+GUID_NAMESPACE = uuid.UUID("6f1c2a4e-4be1-4a53-9d2e-7d0a7c3e5b11")
+
+
+def base_units(unit: str) -> tuple[dict[str, int], float]:
+    """'kg.m2', 'N/m', 'm/s2', '1/s' -> SI base exponents and factor; ValueError when unknown."""
+    exponents: dict[str, int] = {}
+    factor = 1.0
+    numerator, _, denominator = unit.partition("/")
+    for part, sign in ((numerator, 1), (denominator, -1)):
+        if not part:
+            continue
+        for token in part.split("."):
+            match = re.fullmatch(r"([A-Za-z]+|1)(-?\d+)?", token)
+            if not match or match.group(1) not in BASE:
+                raise ValueError(token)
+            power = int(match.group(2) or 1) * sign
+            for base, exponent in BASE[match.group(1)].items():
+                exponents[base] = exponents.get(base, 0) + exponent * power
+            factor *= FACTOR.get(match.group(1), 1.0) ** power
+    return {k: v for k, v in exponents.items() if v}, factor
+
+
+def rate_unit(unit: str, order: int = 1) -> str:
+    """The unit of a quantity's order-th time derivative: 'm' -> 'm/s', 'm/s2'; 'N/m' -> 'N/m.s-1'."""
+    if not unit:
+        return ""
+    seconds = "s" if order == 1 else f"s{order}"
+    if unit == "1":
+        return f"1/{seconds}"
+    return f"{unit}/{seconds}" if "/" not in unit else f"{unit}.s-{order}"
+
+
+def velocity_unit(unit: str) -> str:
+    return rate_unit(unit, 1)
+
+
+def acceleration_unit(unit: str) -> str:
+    return rate_unit(unit, 2)
+
+
+@dataclass
+class Variable:
+    name: str
+    causality: str
+    variability: str
+    type: str = "Real"
+    initial: str | None = None
+    start: float | int | None = None
+    unit: str = ""
+    min: float | None = None
+    max: float | None = None
+    description: str = ""
+    derivative: int | None = None     # 1-based index of the state
+    declared_type: str = ""
+
+
+def variables(derivation: Derivation) -> list[Variable]:
+    spec = derivation.spec
+    result: list[Variable] = []
+    for c in spec.coordinates:
+        result.append(Variable(c.name, "output", "continuous", initial="exact", start=c.start, unit=c.unit,
+                               description=c.description or f"generalized coordinate {c.name}"))
+    for c in spec.coordinates:
+        result.append(Variable(c.velocity, "output", "continuous", initial="exact", start=c.velocity_start,
+                               unit=velocity_unit(c.unit), description=c.velocity_description or f"d{c.name}/dt"))
+    n = len(spec.coordinates)
+    for k, c in enumerate(spec.coordinates):
+        result.append(Variable(f"der({c.name})", "local", "continuous", initial="calculated",
+                               unit=velocity_unit(c.unit), derivative=k + 1))
+    for k, c in enumerate(spec.coordinates):
+        result.append(Variable(f"der({c.velocity})", "local", "continuous", initial="calculated",
+                               unit=acceleration_unit(c.unit), derivative=n + k + 1))
+    for p in spec.parameters:
+        tunable = p.name in ("h", "tol")
+        result.append(Variable(p.name, "parameter", "tunable" if tunable else "fixed", start=p.start, unit=p.unit,
+                               min=p.min, max=p.max, description=p.description))
+    points = {pt.name: pt for pt in spec.points}
+    for force in spec.forces:
+        for axis, name in force.inputs.items():
+            what = force.description or f"external force on {force.point}"
+            result.append(Variable(name, "input", "continuous", start=0.0, unit="N", description=f"{what}, {axis}"))
+    for point in spec.points:
+        what = point.description or point.name
+        for kind, name in point.outputs.items():
+            velocity = kind.startswith("v_")
+            result.append(Variable(name, "output", "continuous", initial="calculated", unit="m/s" if velocity else "m",
+                                   description=f"{what}, {'velocity' if velocity else 'position'} {kind[-1]}"))
+    del points
+    result += [Variable("E_kin", "output", "continuous", initial="calculated", unit="J", description="kinetic energy T"),
+               Variable("E_pot", "output", "continuous", initial="calculated", unit="J",
+                        description="potential energy U"),
+               Variable("E", "output", "continuous", initial="calculated", unit="J", description="total energy T + U")]
+    result.append(Variable("solver", "parameter", "tunable", type="Enumeration", declared_type="Solver",
+                           start=SOLVERS.index("rk4") + 1, description="integration method of fmi2DoStep"))
+    if derivation.linear is not None:
+        result.append(Variable("model", "parameter", "fixed", type="Enumeration", declared_type="Model", start=1,
+                               description="nonlinear, or the quadratic approximation of T and U about rest solved "
+                                           "in closed form per step"))
+    result += [Variable("n_rhs", "output", "discrete", type="Integer", initial="calculated",
+                        description="right-hand-side evaluations since initialization (Model Exchange: each new "
+                                    "state, time or input the importer evaluates)"),
+               Variable("n_steps", "output", "discrete", type="Integer", initial="calculated",
+                        description="accepted internal steps (closed-form evaluations for the linear model)"),
+               Variable("n_rejected", "output", "discrete", type="Integer", initial="calculated",
+                        description="steps rejected by the rkf45 error test")]
+    return result
+
+
+def _number(value) -> str:
+    if isinstance(value, int):
+        return str(value)
+    return repr(float(value)) if float(value) != int(float(value)) or abs(value) >= 1e16 else str(int(float(value)))
+
+
+def model_description(derivation: Derivation) -> str:
+    spec = derivation.spec
+    variable_list = variables(derivation)
+    units: dict[str, tuple[dict[str, int], float]] = {}
+    for v in variable_list:
+        if v.unit and v.unit not in units:
+            try:
+                units[v.unit] = base_units(v.unit)
+            except ValueError as error:
+                raise ObjectFileError(f"{spec.path}: unit {v.unit!r} of {v.name}: {error.args[0]!r} is not a unit "
+                                      f"this generator knows ({', '.join(BASE)}, with powers, '.' and '/')") from None
+    body = _document(derivation, variable_list, units, "{GUID}")
+    guid = "{" + str(uuid.uuid5(GUID_NAMESPACE, body)) + "}"
+    return body.replace("{GUID}", guid)
+
+
+def _document(derivation: Derivation, variable_list: list[Variable], units, guid: str) -> str:
+    spec = derivation.spec
+    sources = "".join(f'<File name="{f}"/>' for f in SOURCE_FILES)
+    lines = [
+        '<?xml version="1.0" encoding="UTF-8"?>',
+        f'<fmiModelDescription fmiVersion="2.0" modelName="{spec.identifier}"',
+        f'  guid="{guid}"',
+        f'  description={quoteattr(spec.description)}',
+        '  generationTool="pendulum-fmus harness.objects" variableNamingConvention="structured" '
+        'numberOfEventIndicators="0">',
+        f'  <ModelExchange modelIdentifier="{spec.identifier}" canGetAndSetFMUstate="true" '
+        'canSerializeFMUstate="true"',
+        '    completedIntegratorStepNotNeeded="true" canNotUseMemoryManagementFunctions="false">',
+        f'    <SourceFiles>{sources}</SourceFiles>',
+        '  </ModelExchange>',
+        f'  <CoSimulation modelIdentifier="{spec.identifier}" canHandleVariableCommunicationStepSize="true"',
+        '    canInterpolateInputs="true" maxOutputDerivativeOrder="1" canGetAndSetFMUstate="true"',
+        '    canSerializeFMUstate="true" canNotUseMemoryManagementFunctions="false">',
+        f'    <SourceFiles>{sources}</SourceFiles>',
+        '  </CoSimulation>',
+        '  <UnitDefinitions>',
+    ]
+    for name, (exponents, factor) in units.items():
+        attributes = "".join(f' {k}="{v}"' for k, v in sorted(exponents.items()))
+        if factor != 1.0:
+            attributes += f' factor="{factor!r}"'
+        lines.append(f'    <Unit name={quoteattr(name)}><BaseUnit{attributes}/></Unit>')
+    lines += ['  </UnitDefinitions>', '  <TypeDefinitions>', '    <SimpleType name="Solver">', '      <Enumeration>']
+    for k, (name, _, description) in enumerate(_solver_items()):
+        lines.append(f'        <Item name="{name}" value="{k + 1}" description={quoteattr(description)}/>')
+    lines += ['      </Enumeration>', '    </SimpleType>']
+    if derivation.linear is not None:
+        lines += ['    <SimpleType name="Model">', '      <Enumeration>',
+                  '        <Item name="nonlinear" value="1" description="full equations, integrated by the chosen '
+                  'solver"/>',
+                  '        <Item name="linear" value="2" description="quadratic T and U about rest, solved in closed '
+                  'form per step"/>',
+                  '      </Enumeration>', '    </SimpleType>']
+    lines += ['  </TypeDefinitions>', '  <LogCategories>',
+              '    <Category name="logStatusError" description="errors: bad arguments, illegal call sequences"/>',
+              '    <Category name="logStatusWarning" description="warnings"/>',
+              '    <Category name="logStatusDiscard" description="steps that could not be completed"/>',
+              '    <Category name="logAll" description="everything"/>',
+              '  </LogCategories>',
+              '  <DefaultExperiment startTime="0" stopTime="10" stepSize="0.01"/>',
+              '  <ModelVariables>']
+    reals = [v for v in variable_list if v.type == "Real"]
+    integers = [v for v in variable_list if v.type != "Real"]
+    for index, v in enumerate(reals + integers, start=1):
+        attributes = f'name={quoteattr(v.name)} valueReference="{index - 1}" causality="{v.causality}" ' \
+                     f'variability="{v.variability}"'
+        if v.initial:
+            attributes += f' initial="{v.initial}"'
+        if v.description:
+            attributes += f" description={quoteattr(v.description)}"
+        typed = ""
+        if v.type == "Enumeration":
+            typed = f'<Enumeration declaredType="{v.declared_type}" start="{v.start}"/>'
+        elif v.type == "Integer":
+            typed = "<Integer/>"
+        else:
+            typed = "<Real"
+            if v.unit:
+                typed += f" unit={quoteattr(v.unit)}"
+            if v.derivative:
+                typed += f' derivative="{v.derivative}"'
+            if v.start is not None:
+                typed += f' start="{_number(v.start)}"'
+            if v.min is not None:
+                typed += f' min="{_number(v.min)}"'
+            if v.max is not None:
+                typed += f' max="{_number(v.max)}"'
+            typed += "/>"
+        lines.append(f"    <!-- {index} --><ScalarVariable {attributes}>{typed}</ScalarVariable>")
+    ordered = reals + integers
+    outputs = [k for k, v in enumerate(ordered, start=1) if v.causality == "output"]
+    derivatives = [k for k, v in enumerate(ordered, start=1) if v.derivative]
+    calculated = [k for k, v in enumerate(ordered, start=1) if v.causality == "output" and v.initial == "calculated"]
+
+    def unknowns(indices):
+        return "".join(f'<Unknown index="{k}"/>' for k in indices)
+
+    lines += ['  </ModelVariables>', '  <ModelStructure>',
+              f'    <Outputs>{unknowns(outputs)}</Outputs>',
+              f'    <Derivatives>{unknowns(derivatives)}</Derivatives>',
+              f'    <InitialUnknowns>{unknowns(sorted(derivatives + calculated))}</InitialUnknowns>',
+              '  </ModelStructure>', '</fmiModelDescription>', '']
+    return "\n".join(lines)
+
+
+def _solver_items():
+    return [(m.name, m.order, m.description) for m in METHODS]

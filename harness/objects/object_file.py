@@ -1,0 +1,378 @@
+"""Object files: a mechanical object described by its kinetic and potential energy (TOML).
+
+Reading checks everything that can be checked without deriving the equations: names, numbers,
+expressions and the symbols they use. Every problem is one `ObjectFileError` line naming the file,
+the key and the problem.
+"""
+from __future__ import annotations
+
+import keyword
+import math
+import re
+import tomllib
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import sympy as sp
+from sympy.parsing.sympy_parser import parse_expr, standard_transformations
+
+# What every object gets from the framework; an object file may restate d, h or tol (to set its
+# default, range or position among the parameters) but may not use the other names.
+FRAMEWORK_PARAMETERS = {
+    "d": dict(start=0.0, unit="1/s", min=0.0, description="damping: each generalized acceleration gets -d times "
+                                                            "its velocity"),
+    "h": dict(start=0.008, unit="s", min=1e-9, description="internal step (initial step for rkf45)"),
+    "tol": dict(start=1e-6, unit="1", min=1e-14, max=1.0,
+                description="rkf45 tolerance: |err_i| <= tol (1 + |y_i|), RMS norm"),
+}
+RESERVED = {"solver", "model", "n_rhs", "n_steps", "n_rejected", "E_kin", "E_pot", "E", "t", "time"}
+FUNCTIONS = {name: getattr(sp, name) for name in (
+    "sin", "cos", "tan", "asin", "acos", "atan", "atan2", "sinh", "cosh", "tanh", "exp", "log", "sqrt", "Abs")}
+FUNCTIONS["pi"] = sp.pi
+IDENTIFIER = re.compile(r"[A-Za-z][A-Za-z0-9_]*\Z")
+AXES = ("x", "y", "z")
+
+
+class ObjectFileError(Exception):
+    """A bad object file: the message is one line naming the file, the key and the problem."""
+
+
+@dataclass
+class Parameter:
+    name: str
+    start: float
+    unit: str = ""
+    min: float | None = None
+    max: float | None = None
+    description: str = ""
+
+
+@dataclass
+class Coordinate:
+    name: str
+    start: float
+    unit: str
+    velocity: str
+    velocity_start: float = 0.0
+    description: str = ""
+    velocity_description: str = ""
+
+
+@dataclass
+class Point:
+    name: str
+    position: list[sp.Expr]           # x, y (and z for a 3-D point)
+    outputs: dict[str, str]           # "x", "y", "z", "v_x", ... -> output variable name
+    description: str = ""
+    velocity: bool = True
+
+
+@dataclass
+class Force:
+    name: str
+    point: str
+    inputs: dict[str, str]            # axis -> input variable name
+    description: str = ""
+
+
+@dataclass
+class ObjectSpec:
+    """One object as its file describes it, with every expression parsed into SymPy."""
+    path: Path
+    identifier: str
+    description: str
+    parameters: list[Parameter]       # the object's own and the restated framework ones, in file order
+    coordinates: list[Coordinate]
+    T: sp.Expr
+    U: sp.Expr
+    points: list[Point]
+    forces: list[Force]
+    rest: dict[str, sp.Expr]          # rest state of the linear model (parameters allowed)
+    require: list[sp.Expr]            # expressions that stay positive; the state is singular elsewhere
+    symbols: dict[str, sp.Symbol] = field(repr=False, default_factory=dict)
+
+    @property
+    def time(self) -> sp.Symbol:
+        return self.symbols["t"]
+
+    def parameter_symbols(self) -> list[sp.Symbol]:
+        return [self.symbols[p.name] for p in self.parameters if p.name not in FRAMEWORK_PARAMETERS]
+
+    @property
+    def q(self) -> list[sp.Symbol]:
+        return [self.symbols[c.name] for c in self.coordinates]
+
+    @property
+    def v(self) -> list[sp.Symbol]:
+        return [self.symbols[c.velocity] for c in self.coordinates]
+
+    @property
+    def dimension(self) -> int:
+        return max(len(p.position) for p in self.points) if self.points else 2
+
+    @property
+    def rheonomic(self) -> bool:
+        t = self.time
+        return any(t in e.free_symbols for e in [self.T, self.U] + [x for p in self.points for x in p.position])
+
+
+class _Reader:
+    def __init__(self, path: Path):
+        self.path = path
+
+    def fail(self, key: str, problem: str) -> ObjectFileError:
+        return ObjectFileError(f"{self.path}: {key}: {problem}")
+
+    def table(self, data: dict, key: str, required: bool = True) -> dict:
+        value = data.get(key)
+        if value is None:
+            if required:
+                raise self.fail(key, "missing")
+            return {}
+        if not isinstance(value, dict):
+            raise self.fail(key, "must be a table")
+        return value
+
+    def string(self, data: dict, key: str, where: str, default: str | None = None) -> str:
+        value = data.get(key, default)
+        if value is None:
+            raise self.fail(where, "missing")
+        if not isinstance(value, str):
+            raise self.fail(where, f"must be a string, not {value!r}")
+        return value
+
+    def number(self, data: dict, key: str, where: str, default: float | None = None) -> float | None:
+        value = data.get(key, default)
+        if value is None:
+            return None
+        if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
+            raise self.fail(where, f"must be a finite number, not {value!r}")
+        return float(value)
+
+    def name(self, name: str, where: str) -> str:
+        if not IDENTIFIER.match(name):
+            raise self.fail(where, f"{name!r} is not a name (a letter, then letters, digits or _)")
+        if keyword.iskeyword(name) or name in FUNCTIONS:
+            raise self.fail(where, f"{name!r} is a reserved word")
+        return name
+
+    def known_keys(self, data: dict, allowed: set[str], where: str) -> None:
+        unknown = sorted(set(data) - allowed)
+        if unknown:
+            raise self.fail(f"{where}.{unknown[0]}", f"unknown key (allowed: {', '.join(sorted(allowed))})")
+
+    def expression(self, text: object, where: str, symbols: dict[str, sp.Symbol],
+                   allowed: set[sp.Symbol]) -> sp.Expr:
+        if isinstance(text, (int, float)) and not isinstance(text, bool):
+            return sp.Float(text) if isinstance(text, float) else sp.Integer(text)
+        if not isinstance(text, str) or not text.strip():
+            raise self.fail(where, f"must be an expression in a string, not {text!r}")
+        # parse_expr evaluates Python: allow nothing but names, numbers and arithmetic.
+        if re.search(r"__|\.\s*[A-Za-z_]|[^A-Za-z0-9_+\-*/(). ,\t]", text):
+            bad = re.search(r"__|\.\s*[A-Za-z_]|[^A-Za-z0-9_+\-*/(). ,\t]", text).group(0)
+            hint = " (write powers as **)" if bad == "^" else ""
+            raise self.fail(where, f"{text!r}: {bad!r} is not allowed in an expression{hint}")
+        namespace = {"__builtins__": {}, "Integer": sp.Integer, "Float": sp.Float, "Rational": sp.Rational,
+                     "Symbol": sp.Symbol, **FUNCTIONS}
+        try:
+            expr = parse_expr(text, local_dict=dict(symbols), global_dict=namespace,
+                              transformations=standard_transformations, evaluate=True)
+        except Exception as error:  # SymPy reports syntax errors in several exception types
+            raise self.fail(where, f"{text!r} is not an expression ({type(error).__name__})") from None
+        if not isinstance(expr, sp.Expr):
+            raise self.fail(where, f"{text!r} is not an expression")
+        unknown = sorted(str(s) for s in expr.free_symbols if s not in allowed)
+        if unknown:
+            known_but_not_here = [u for u in unknown if u in symbols]
+            if known_but_not_here:
+                raise self.fail(where, f"{known_but_not_here[0]!r} may not appear here")
+            raise self.fail(where, f"unknown symbol {unknown[0]!r}")
+        if expr.has(sp.zoo, sp.oo, sp.nan, sp.I):
+            raise self.fail(where, f"{text!r} is not a finite real expression")
+        return expr
+
+
+def read_object_file(path: str | Path) -> ObjectSpec:
+    """Reads and checks an object file; raises ObjectFileError with a one-line message."""
+    path = Path(path)
+    reader = _Reader(path)
+    try:
+        data = tomllib.loads(path.read_text(encoding="utf-8"))
+    except OSError as error:
+        raise ObjectFileError(f"{path}: cannot be read ({error.strerror or error})") from None
+    except UnicodeDecodeError:
+        raise ObjectFileError(f"{path}: is not UTF-8 text") from None
+    except tomllib.TOMLDecodeError as error:
+        raise ObjectFileError(f"{path}: is not valid TOML ({error})") from None
+    reader.known_keys(data, {"identifier", "description", "parameters", "coordinates", "energy", "points", "forces",
+                             "rest", "require"}, "file")
+
+    identifier = reader.string(data, "identifier", "identifier")
+    if not IDENTIFIER.match(identifier) or len(identifier) > 60:
+        raise reader.fail("identifier", f"{identifier!r} must be a C identifier of at most 60 characters")
+    description = reader.string(data, "description", "description", default="")
+
+    taken: dict[str, str] = {}
+
+    def claim(name: str, where: str) -> str:
+        reader.name(name, where)
+        if name in RESERVED:
+            raise reader.fail(where, f"{name!r} is a name every object already has")
+        if name in taken:
+            raise reader.fail(where, f"{name!r} is already used by {taken[name]}")
+        taken[name] = where
+        return name
+
+    parameters: list[Parameter] = []
+    for name, entry in reader.table(data, "parameters").items():
+        where = f"parameters.{name}"
+        claim(name, where)
+        if not isinstance(entry, dict):
+            raise reader.fail(where, "must be a table such as { start = 1.0, unit = \"m\" }")
+        reader.known_keys(entry, {"start", "unit", "min", "max", "description"}, where)
+        defaults = FRAMEWORK_PARAMETERS.get(name, {})
+        start = reader.number(entry, "start", f"{where}.start", defaults.get("start"))
+        if start is None:
+            raise reader.fail(f"{where}.start", "missing")
+        p = Parameter(name, start, reader.string(entry, "unit", f"{where}.unit", defaults.get("unit", "")),
+                      reader.number(entry, "min", f"{where}.min", defaults.get("min")),
+                      reader.number(entry, "max", f"{where}.max", defaults.get("max")),
+                      reader.string(entry, "description", f"{where}.description", defaults.get("description", "")))
+        _check_range(reader, where, p.start, p.min, p.max)
+        parameters.append(p)
+    for name, defaults in FRAMEWORK_PARAMETERS.items():
+        if name not in taken:
+            claim(name, f"parameters.{name}")
+            parameters.append(Parameter(name, **defaults))
+
+    coordinates: list[Coordinate] = []
+    for name, entry in reader.table(data, "coordinates").items():
+        where = f"coordinates.{name}"
+        claim(name, where)
+        if not isinstance(entry, dict):
+            raise reader.fail(where, "must be a table such as { start = 0.5, unit = \"rad\", velocity = \"omega\" }")
+        reader.known_keys(entry, {"start", "unit", "velocity", "velocity_start", "description",
+                                  "velocity_description"}, where)
+        if "velocity" not in entry:
+            raise reader.fail(f"{where}.velocity", "missing: every coordinate needs the name of its velocity")
+        velocity = claim(reader.string(entry, "velocity", f"{where}.velocity"), f"{where}.velocity")
+        start = reader.number(entry, "start", f"{where}.start", 0.0)
+        coordinates.append(Coordinate(name, start, reader.string(entry, "unit", f"{where}.unit", ""), velocity,
+                                      reader.number(entry, "velocity_start", f"{where}.velocity_start", 0.0),
+                                      reader.string(entry, "description", f"{where}.description", ""),
+                                      reader.string(entry, "velocity_description", f"{where}.velocity_description",
+                                                    "")))
+    if not coordinates:
+        raise reader.fail("coordinates", "an object needs at least one generalized coordinate")
+
+    symbols = {name: sp.Symbol(name, real=True) for name in taken}
+    symbols["t"] = sp.Symbol("t", real=True)
+    velocity_keys = {f"velocity of {symbols[c.name]}": symbols[c.velocity] for c in coordinates}
+    params = {symbols[p.name] for p in parameters if p.name not in FRAMEWORK_PARAMETERS}
+    q = {symbols[c.name] for c in coordinates}
+    v = {symbols[c.velocity] for c in coordinates}
+    t = {symbols["t"]}
+
+    points: list[Point] = []
+    for name, entry in reader.table(data, "points", required=False).items():
+        where = f"points.{name}"
+        reader.name(name, where)
+        if not isinstance(entry, dict):
+            raise reader.fail(where, "must be a table such as { x = \"L*sin(phi)\", y = \"-L*cos(phi)\" }")
+        reader.known_keys(entry, {"x", "y", "z", "names", "description", "velocity"}, where)
+        axes = [a for a in AXES if a in entry]
+        if axes not in (["x", "y"], ["x", "y", "z"]):
+            raise reader.fail(where, "needs x and y expressions (and z for a 3-D point)")
+        position = [reader.expression(entry[a], f"{where}.{a}", symbols, params | q | t) for a in axes]
+        with_velocity = entry.get("velocity", True)
+        if not isinstance(with_velocity, bool):
+            raise reader.fail(f"{where}.velocity", "must be true or false")
+        kinds = axes + ([f"v_{a}" for a in axes] if with_velocity else [])
+        names = reader.table(entry, "names", required=False)
+        reader.known_keys(names, set(kinds), f"{where}.names")
+        outputs = {}
+        for kind in kinds:
+            output = names.get(kind, f"{name}_{kind}")
+            if not isinstance(output, str):
+                raise reader.fail(f"{where}.names.{kind}", "must be a string")
+            outputs[kind] = claim(output, f"{where}.names.{kind}")
+        points.append(Point(name, position, outputs, reader.string(entry, "description", f"{where}.description", ""),
+                            with_velocity))
+
+    energy = reader.table(data, "energy")
+    reader.known_keys(energy, {"T", "U"}, "energy")
+    for key in ("T", "U"):
+        if key not in energy:
+            raise reader.fail(f"energy.{key}", "missing")
+    # speed2(point) in T: the squared speed of a named point (m/2*speed2(bob) for a point mass)
+    speed2 = sp.Function("speed2")
+    point_symbols = {p.name: sp.Symbol(f"point {p.name}") for p in points}
+    T = reader.expression(energy["T"], "energy.T", {**symbols, **point_symbols, "speed2": speed2},
+                          params | q | v | t | set(point_symbols.values()))
+    T = _replace_speed2(reader, T, speed2, point_symbols, points, sorted(q, key=str), {**symbols, **velocity_keys})
+    U = reader.expression(energy["U"], "energy.U", symbols, params | q | t)
+
+    forces: list[Force] = []
+    point_names = {p.name: p for p in points}
+    for name, entry in reader.table(data, "forces", required=False).items():
+        where = f"forces.{name}"
+        reader.name(name, where)
+        if not isinstance(entry, dict):
+            raise reader.fail(where, "must be a table such as { point = \"bob\" }")
+        reader.known_keys(entry, {"point", "description", "names"}, where)
+        point = reader.string(entry, "point", f"{where}.point")
+        if point not in point_names:
+            raise reader.fail(f"{where}.point", f"{point!r} is not one of the points ({', '.join(point_names)})")
+        axes = AXES[:len(point_names[point].position)]
+        names = reader.table(entry, "names", required=False)
+        reader.known_keys(names, set(axes), f"{where}.names")
+        inputs = {}
+        for axis in axes:
+            inputs[axis] = claim(names.get(axis, f"{name}_{axis}"), f"{where}.names.{axis}")
+        forces.append(Force(name, point, inputs, reader.string(entry, "description", f"{where}.description", "")))
+
+    for force in forces:
+        symbols.update({name: sp.Symbol(name, real=True) for name in force.inputs.values()})
+
+    rest_table = reader.table(data, "rest", required=False)
+    reader.known_keys(rest_table, {c.name for c in coordinates}, "rest")
+    rest = {c.name: reader.expression(rest_table.get(c.name, 0), f"rest.{c.name}", symbols, params)
+            for c in coordinates}
+
+    require_list = data.get("require", [])
+    if not isinstance(require_list, list):
+        raise reader.fail("require", "must be a list of expressions that stay positive")
+    require = [reader.expression(e, f"require[{k}]", symbols, params | q | t) for k, e in enumerate(require_list)]
+
+    spec = ObjectSpec(path, identifier, description, parameters, coordinates, T, U, points, forces, rest, require,
+                      symbols)
+    if not points:
+        raise reader.fail("points", "an object needs at least one point (its position is what a scene shows)")
+    return spec
+
+
+def _replace_speed2(reader: _Reader, T, speed2, point_symbols, points, q, symbols):
+    by_symbol = {point_symbols[p.name]: p for p in points}
+    coordinates = list(q)
+    velocity_of = {}
+    for call in T.atoms(sp.core.function.AppliedUndef):
+        if call.func != speed2 or len(call.args) != 1 or call.args[0] not in by_symbol:
+            raise reader.fail("energy.T", f"{call} must be speed2(<a point's name>)")
+        position = by_symbol[call.args[0]].position
+        velocity = [sp.diff(x, symbols["t"]) + sum(sp.diff(x, qj) * symbols[f"velocity of {qj}"] for qj in coordinates)
+                    for x in position]
+        velocity_of[call] = sum(component ** 2 for component in velocity)
+    T = T.xreplace(velocity_of)
+    stray = T.free_symbols & set(point_symbols.values())
+    if stray:
+        raise reader.fail("energy.T", f"a point's name may appear only inside speed2(): {sorted(map(str, stray))[0]}")
+    return T
+
+
+def _check_range(reader: _Reader, where: str, start: float, low: float | None, high: float | None) -> None:
+    if low is not None and high is not None and low > high:
+        raise reader.fail(where, f"min = {low} is above max = {high}")
+    if low is not None and start < low:
+        raise reader.fail(f"{where}.start", f"{start} is below min = {low}")
+    if high is not None and start > high:
+        raise reader.fail(f"{where}.start", f"{start} is above max = {high}")
