@@ -197,51 +197,20 @@ def generate_c(derivation: Derivation) -> GeneratedC:
         body = ["    if (c->linear) {", "        linear_model_derivatives(&c->lin, c->d, x, u, dx);",
                 "        return;", "    }"] + body
 
-    # ---- outputs
-    out_exprs, out_targets = [], []
-    for point, position, velocity in zip(spec.points, derivation.positions, derivation.velocities):
-        for axis, value in zip("xyz", position):
-            out_targets.append(point.outputs[axis])
-            out_exprs.append(value)
-        if point.velocity:
-            for axis, value in zip("xyz", velocity):
-                out_targets.append(point.outputs[f"v_{axis}"])
-                out_exprs.append(value)
-    energies = [derivation.T, derivation.U]
-    out_lines, out_reduced, _ = _cse_lines([prepared(e) for e in out_exprs + energies], "w")
+    # ---- outputs and their exact time derivatives: the same targets, values one derivative apart
+    q, v, t = spec.q, spec.v, spec.time
     real_locals = [f"    const double s_{c.name} = real[VR_{c.name}];" for c in spec.coordinates] + \
                   [f"    const double s_{c.velocity} = real[VR_{c.velocity}];" for c in spec.coordinates]
-    outputs_body = list(out_lines)
-    outputs_body += [f"    real[VR_{name}] = {c_expr(e)};" for name, e in zip(out_targets, out_reduced)]
-    outputs_body += [f"    real[VR_E_kin] = {c_expr(out_reduced[-2])};", f"    real[VR_E_pot] = {c_expr(out_reduced[-1])};"]
-    if has_linear:
-        outputs_body += ["    if (c->linear) linear_model_energies(&c->lin, real, dx, &real[VR_E_kin], &real[VR_E_pot], "
-                         "NULL, NULL);"]
-    outputs_body.append("    real[VR_E] = real[VR_E_kin] + real[VR_E_pot];")
+    targets, values = _point_outputs(spec, derivation.positions, derivation.velocities)
+    outputs_body = _output_function("real", targets, [prepared(e) for e in values + [derivation.T, derivation.U]],
+                                    "&real[VR_E_kin], &real[VR_E_pot], NULL, NULL" if has_linear else None)
     outputs_body = _with_locals(real_locals, outputs_body)
-
-    # ---- output derivatives
-    q, v, t = spec.q, spec.v, spec.time
     names.mapping.update({a: sp.Symbol(f"dx[{n + j}]", real=True) for j, a in enumerate(accelerations)})
-    rate_exprs, rate_targets = [], []
-    for point, position, velocity in zip(spec.points, derivation.positions, derivation.velocities):
-        for axis, value in zip("xyz", velocity):
-            rate_targets.append(point.outputs[axis])
-            rate_exprs.append(value)
-        if point.velocity:
-            for axis, value in zip("xyz", velocity):
-                rate_targets.append(point.outputs[f"v_{axis}"])
-                rate_exprs.append(total_derivative(value, q, v, accelerations, t))
-    energy_rates = [total_derivative(derivation.T, q, v, accelerations, t),
-                    total_derivative(derivation.U, q, v, accelerations, t)]
-    rate_lines, rate_reduced, _ = _cse_lines([prepared(e) for e in rate_exprs + energy_rates], "w")
-    rates_body = list(rate_lines)
-    rates_body += [f"    rate[VR_{name}] = {c_expr(e)};" for name, e in zip(rate_targets, rate_reduced)]
-    rates_body += [f"    rate[VR_E_kin] = {c_expr(rate_reduced[-2])};", f"    rate[VR_E_pot] = {c_expr(rate_reduced[-1])};"]
-    if has_linear:
-        rates_body += ["    if (c->linear) linear_model_energies(&c->lin, real, dx, NULL, NULL, &rate[VR_E_kin], "
-                       "&rate[VR_E_pot]);"]
-    rates_body.append("    rate[VR_E] = rate[VR_E_kin] + rate[VR_E_pot];")
+    accelerated = [[total_derivative(x, q, v, accelerations, t) for x in velocity] for velocity in derivation.velocities]
+    _, rates = _point_outputs(spec, derivation.velocities, accelerated)
+    energy_rates = [total_derivative(e, q, v, accelerations, t) for e in (derivation.T, derivation.U)]
+    rates_body = _output_function("rate", targets, [prepared(e) for e in rates + energy_rates],
+                                  "NULL, NULL, &rate[VR_E_kin], &rate[VR_E_pot]" if has_linear else None)
     rates_body = _with_locals(real_locals, rates_body)
 
     # ---- model_prepare
@@ -303,6 +272,30 @@ def generate_c(derivation: Derivation) -> GeneratedC:
         closed_form=("    if (!c->linear) return 0;\n    linear_model_step(&c->lin, c->d, H, u, x);\n    return 1;"
                      if has_linear else "    (void)c, (void)H, (void)u, (void)x;\n    return 0;"))
     return GeneratedC(header, source)
+
+
+def _point_outputs(spec, positions, velocities):
+    """(output names, values) of every point's position and, where it has them, velocity outputs."""
+    targets, values = [], []
+    for point, position, velocity in zip(spec.points, positions, velocities):
+        targets += [point.outputs[axis] for axis in "xyz"[:len(position)]]
+        values += list(position)
+        if point.velocity:
+            targets += [point.outputs[f"v_{axis}"] for axis in "xyz"[:len(velocity)]]
+            values += list(velocity)
+    return targets, values
+
+
+def _output_function(array: str, targets: list[str], values: list, linear_arguments: str | None) -> list[str]:
+    """array[VR_<target>] = value for each point output, then E_kin, E_pot (the last two values) and E;
+    with a linear model, its quadratic energies replace E_kin and E_pot in linear mode."""
+    lines, reduced, _ = _cse_lines(values, "w")
+    lines += [f"    {array}[VR_{name}] = {c_expr(e)};" for name, e in zip(targets, reduced)]
+    lines += [f"    {array}[VR_E_kin] = {c_expr(reduced[-2])};", f"    {array}[VR_E_pot] = {c_expr(reduced[-1])};"]
+    if linear_arguments:
+        lines.append(f"    if (c->linear) linear_model_energies(&c->lin, real, dx, {linear_arguments});")
+    lines.append(f"    {array}[VR_E] = {array}[VR_E_kin] + {array}[VR_E_pot];")
+    return lines
 
 
 def _tidy(expr, states: set[sp.Symbol]):

@@ -223,13 +223,18 @@ def read_object_file(path: str | Path) -> ObjectSpec:
         taken[name] = where
         return name
 
-    parameters: list[Parameter] = []
-    for name, entry in reader.table(data, "parameters").items():
-        where = f"parameters.{name}"
+    def claimed_entry(section: str, name: str, entry, example: str, allowed: set[str]) -> str:
+        where = f"{section}.{name}"
         claim(name, where)
         if not isinstance(entry, dict):
-            raise reader.fail(where, "must be a table such as { start = 1.0, unit = \"m\" }")
-        reader.known_keys(entry, {"start", "unit", "min", "max", "description"}, where)
+            raise reader.fail(where, f"must be a table such as {example}")
+        reader.known_keys(entry, allowed, where)
+        return where
+
+    parameters: list[Parameter] = []
+    for name, entry in reader.table(data, "parameters").items():
+        where = claimed_entry("parameters", name, entry, '{ start = 1.0, unit = "m" }',
+                              {"start", "unit", "min", "max", "description"})
         defaults = FRAMEWORK_PARAMETERS.get(name, {})
         start = reader.number(entry, "start", f"{where}.start", defaults.get("start"))
         if start is None:
@@ -247,12 +252,8 @@ def read_object_file(path: str | Path) -> ObjectSpec:
 
     coordinates: list[Coordinate] = []
     for name, entry in reader.table(data, "coordinates").items():
-        where = f"coordinates.{name}"
-        claim(name, where)
-        if not isinstance(entry, dict):
-            raise reader.fail(where, "must be a table such as { start = 0.5, unit = \"rad\", velocity = \"omega\" }")
-        reader.known_keys(entry, {"start", "unit", "velocity", "velocity_start", "description",
-                                  "velocity_description"}, where)
+        where = claimed_entry("coordinates", name, entry, '{ start = 0.5, unit = "rad", velocity = "omega" }',
+                              {"start", "unit", "velocity", "velocity_start", "description", "velocity_description"})
         if "velocity" not in entry:
             raise reader.fail(f"{where}.velocity", "missing: every coordinate needs the name of its velocity")
         velocity = claim(reader.string(entry, "velocity", f"{where}.velocity"), f"{where}.velocity")
