@@ -1,14 +1,20 @@
-/* Cost of one internal RK4 step inside fmi2DoStep against a bare C loop of the same right-hand side.
+/* Cost of one internal RK4 step inside fmi2DoStep against textbook RK4 loops in plain C.
  *
- *   bench_<Model> FMU.so both STEPS    time ratio, FMU / bare, interleaved repeats in one run
- *   bench_<Model> FMU.so fmu STEPS     only the FMU path   (for instruction counts under callgrind)
- *   bench_<Model> FMU.so bare STEPS    only the bare loop
+ *   bench_<Model> FMU.so fmu STEPS        the FMU: STEPS internal steps in one fmi2DoStep
+ *   bench_<Model> FMU.so generated STEPS  textbook RK4 over the generated model_derivatives
+ *   bench_<Model> FMU.so bare STEPS       textbook RK4 over the hand-written right-hand side
+ *   bench_<Model> FMU.so check N          hand-written against generated derivatives at N random
+ *                                         states and parameters; exit 1 beyond 1e-12
+ *   bench_<Model> FMU.so both STEPS       the check, then time ratios from interleaved repeats (JSON)
  *
- * The bare loop is textbook RK4 calling the model's model_derivatives, linked from the same
- * physics.c the FMU is built from. The FMU runs all STEPS internal steps inside one fmi2DoStep,
- * so the cost per step is the integrator engine's, not the FMI call's. */
+ * The FMU runs all STEPS internal steps inside one fmi2DoStep, so the cost per step is the
+ * integrator engine's, not the FMI call's. The generated right-hand side is linked from the same
+ * physics.h the FMU is built from; the hand-written ones (handwritten_rhs.h) exist for the three
+ * thesis pendulums only: for any other model, bare and check are refused and both times the FMU
+ * against the generated loop alone. No force acts in any of the loops. */
 #define _POSIX_C_SOURCE 200809L
 #include <dlfcn.h>
+#include <stdint.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -16,8 +22,10 @@
 
 #define MODEL_DESCRIPTION_TABLES
 #include "framework.h"
+#include "handwritten_rhs.h"
 
 #define STEP 1e-3
+#define CHECK_LIMIT 1e-12
 
 typedef struct {
     fmi2Component (*instantiate)(fmi2String, fmi2Type, fmi2String, fmi2String, const fmi2CallbackFunctions *,
@@ -55,6 +63,31 @@ static void *symbol(void *lib, const char *name)
     return p;
 }
 
+/* A value the compiler cannot see through: parameters come at run time, as in the FMU, and are
+ * not folded into the loops as constants. */
+static double at_run_time(double value)
+{
+    volatile double v = value;
+    return v;
+}
+
+/* The variables at their start values, as the FMU has them after instantiation. */
+static void start_values(double *real, int32_t *integer)
+{
+    int i;
+    for (i = 0; i < N_REAL; i++) real[i] = at_run_time(REAL_VARIABLES[i].start);
+    for (i = 0; i < N_INTEGER; i++) integer[i] = (int32_t)INTEGER_VARIABLES[i].start;
+}
+
+static void prepare_generated(const double *real, const int32_t *integer, ModelConst *c)
+{
+    char message[256];
+    if (model_prepare(real, integer, c, message, sizeof message)) {
+        fprintf(stderr, "%s\n", message);
+        exit(2);
+    }
+}
+
 /* Returns the seconds spent in fmi2DoStep; the final first state goes to *result. */
 static double run_fmu(const Api *api, long steps, double *result)
 {
@@ -80,40 +113,113 @@ static double run_fmu(const Api *api, long steps, double *result)
     return t1 - t0;
 }
 
-static double run_bare(long steps, double *result)
+/* The textbook RK4 loop, written out once per right-hand side (a macro rather than a function
+ * pointer, so that each right-hand side is inlined as it would be in a program of its own). */
+#define TEXTBOOK_RK4(RHS, steps, x)                                                    \
+    do {                                                                               \
+        double y_[N_STATES], k1_[N_STATES], k2_[N_STATES], k3_[N_STATES], k4_[N_STATES]; \
+        const double h_ = STEP;                                                        \
+        long n_;                                                                       \
+        int i_;                                                                        \
+        for (n_ = 0; n_ < (steps); n_++) {                                             \
+            RHS(x, k1_);                                                               \
+            for (i_ = 0; i_ < N_STATES; i_++) y_[i_] = x[i_] + 0.5 * h_ * k1_[i_];     \
+            RHS(y_, k2_);                                                              \
+            for (i_ = 0; i_ < N_STATES; i_++) y_[i_] = x[i_] + 0.5 * h_ * k2_[i_];     \
+            RHS(y_, k3_);                                                              \
+            for (i_ = 0; i_ < N_STATES; i_++) y_[i_] = x[i_] + h_ * k3_[i_];           \
+            RHS(y_, k4_);                                                              \
+            for (i_ = 0; i_ < N_STATES; i_++)                                          \
+                x[i_] += h_ / 6.0 * (k1_[i_] + 2.0 * k2_[i_] + 2.0 * k3_[i_] + k4_[i_]); \
+        }                                                                              \
+    } while (0)
+
+static double run_generated(long steps, double *result)
 {
-    double real[N_REAL], x[N_STATES], y[N_STATES], k1[N_STATES], k2[N_STATES], k3[N_STATES], k4[N_STATES];
+    double real[N_REAL], x[N_STATES];
     int32_t integer[INTEGER_SLOTS];
     ModelConst c;
-    const double h = STEP;
     double t0, t1;
-    long n;
-    int i;
-    for (i = 0; i < N_REAL; i++) real[i] = REAL_VARIABLES[i].start;
-    for (i = 0; i < N_INTEGER; i++) integer[i] = (int32_t)INTEGER_VARIABLES[i].start;
-    {
-        char message[256];
-        if (model_prepare(real, integer, &c, message, sizeof message)) {
-            fprintf(stderr, "%s\n", message);
-            exit(2);
-        }
-    }
-    for (i = 0; i < N_STATES; i++) x[i] = real[i];
+    start_values(real, integer);
+    prepare_generated(real, integer, &c);
+    memcpy(x, real, sizeof x);
     t0 = now();
-    for (n = 0; n < steps; n++) {
-        model_derivatives(&c, 0.0, x, NULL, k1);
-        for (i = 0; i < N_STATES; i++) y[i] = x[i] + 0.5 * h * k1[i];
-        model_derivatives(&c, 0.0, y, NULL, k2);
-        for (i = 0; i < N_STATES; i++) y[i] = x[i] + 0.5 * h * k2[i];
-        model_derivatives(&c, 0.0, y, NULL, k3);
-        for (i = 0; i < N_STATES; i++) y[i] = x[i] + h * k3[i];
-        model_derivatives(&c, 0.0, y, NULL, k4);
-        for (i = 0; i < N_STATES; i++) x[i] += h / 6.0 * (k1[i] + 2.0 * k2[i] + 2.0 * k3[i] + k4[i]);
-    }
+#define GENERATED_RHS(state, dx) model_derivatives(&c, 0.0, state, NULL, dx)
+    TEXTBOOK_RK4(GENERATED_RHS, steps, x);
+#undef GENERATED_RHS
     t1 = now();
     *result = x[0];
     return t1 - t0;
 }
+
+#ifdef HAVE_HANDWRITTEN_RHS
+static double run_bare(long steps, double *result)
+{
+    double real[N_REAL], x[N_STATES];
+    int32_t integer[INTEGER_SLOTS];
+    HandConst c;
+    double t0, t1;
+    start_values(real, integer);
+    hand_prepare(real, &c);
+    memcpy(x, real, sizeof x);
+    t0 = now();
+#define HAND_RHS(state, dx) hand_rhs(&c, state, dx)
+    TEXTBOOK_RK4(HAND_RHS, steps, x);
+#undef HAND_RHS
+    t1 = now();
+    *result = x[0];
+    return t1 - t0;
+}
+
+/* xorshift64*: a fixed, reproducible sequence of uniform numbers in [0, 1). */
+static double uniform(uint64_t *s)
+{
+    *s ^= *s >> 12;
+    *s ^= *s << 25;
+    *s ^= *s >> 27;
+    return (double)((*s * 0x2545F4914F6CDD1DULL) >> 11) * 0x1.0p-53;
+}
+
+/* Largest difference of hand-written and generated derivatives over n random states, each with its
+ * own parameters (every parameter its default times 0.5 ... 2, the damping d in [0, 1], so that
+ * the damping convention is compared too). Normwise relative, max |hand - generated| / max
+ * |generated| per state: an acceleration that nearly cancels (terms of 100, sum of 0.1) carries the
+ * rounding of its terms, which a componentwise ratio would blow up. */
+static double check_against_generated(long n)
+{
+    uint64_t seed = 0x9E3779B97F4A7C15ULL;
+    double worst = 0.0;
+    long trial;
+    int i;
+    for (trial = 0; trial < n; trial++) {
+        double real[N_REAL], x[N_STATES], generated[N_STATES], hand[N_STATES];
+        int32_t integer[INTEGER_SLOTS];
+        ModelConst gc;
+        HandConst hc;
+        start_values(real, integer);
+        for (i = N_STATES; i < N_REAL; i++)
+            if (REAL_VARIABLES[i].causality == CAUSALITY_PARAMETER && i != VR_h && i != VR_tol)
+                real[i] *= 0.5 + 1.5 * uniform(&seed);
+        real[VR_d] = uniform(&seed);
+        for (i = 0; i < N_STATES; i++) x[i] = HAND_SAMPLE_RANGE[i] * (2.0 * uniform(&seed) - 1.0);
+        prepare_generated(real, integer, &gc);
+        hand_prepare(real, &hc);
+        model_derivatives(&gc, 0.0, x, NULL, generated);
+        hand_rhs(&hc, x, hand);
+        {
+            double difference = 0.0, scale = 0.0;
+            for (i = 0; i < N_STATES; i++) {
+                const double e = fabs(hand[i] - generated[i]);
+                if (!(e <= difference)) difference = e; /* NaN on either side wins */
+                if (fabs(generated[i]) > scale) scale = fabs(generated[i]);
+            }
+            difference /= scale;
+            if (!(difference <= worst)) worst = difference;
+        }
+    }
+    return worst;
+}
+#endif
 
 static int compare(const void *a, const void *b)
 {
@@ -121,17 +227,88 @@ static int compare(const void *a, const void *b)
     return (x > y) - (x < y);
 }
 
+static double median(double *values, int n)
+{
+    qsort(values, n, sizeof(double), compare);
+    return values[n / 2];
+}
+
+/* Interleaved repeats of every loop, so that machine noise hits all alike; medians as JSON. */
+static void time_all(const Api *api, long steps)
+{
+    enum { ROUNDS = 9 };
+    double fmu[ROUNDS], generated[ROUNDS], to_generated[ROUNDS], result;
+    int r;
+#ifdef HAVE_HANDWRITTEN_RHS
+    double bare[ROUNDS], to_bare[ROUNDS];
+    const double worst = check_against_generated(1000);
+    if (!(worst <= CHECK_LIMIT)) {
+        fprintf(stderr, "hand-written and generated derivatives differ by %.3g (> %g)\n", worst, CHECK_LIMIT);
+        exit(1);
+    }
+#endif
+    for (r = 0; r < ROUNDS; r++) {
+        fmu[r] = run_fmu(api, steps, &result);
+        generated[r] = run_generated(steps, &result);
+        to_generated[r] = fmu[r] / generated[r];
+#ifdef HAVE_HANDWRITTEN_RHS
+        bare[r] = run_bare(steps, &result);
+        to_bare[r] = fmu[r] / bare[r];
+#endif
+    }
+    printf("{\"model\": \"%s\", \"steps\": %ld, \"fmu_ns_per_step\": %.2f, \"generated_ns_per_step\": %.2f, "
+           "\"fmu_to_generated\": %.4f",
+           MODEL_IDENTIFIER_STRING, steps, 1e9 * median(fmu, ROUNDS) / steps, 1e9 * median(generated, ROUNDS) / steps,
+           median(to_generated, ROUNDS));
+#ifdef HAVE_HANDWRITTEN_RHS
+    printf(", \"bare_ns_per_step\": %.2f, \"fmu_to_bare\": %.4f, \"rhs_difference\": %.3g",
+           1e9 * median(bare, ROUNDS) / steps, median(to_bare, ROUNDS), worst);
+#endif
+    printf("}\n");
+}
+
 int main(int argc, char **argv)
 {
     Api api;
     void *lib;
     long steps;
-    double fmu_result, bare_result;
+    double result;
+    const char *mode;
     if (argc != 4) {
-        fprintf(stderr, "usage: %s FMU_LIBRARY {both|fmu|bare} STEPS\n", argv[0]);
+        fprintf(stderr, "usage: %s FMU_LIBRARY {fmu|generated|bare|check|both} STEPS\n", argv[0]);
         return 2;
     }
+    mode = argv[2];
     steps = atol(argv[3]);
+#ifndef HAVE_HANDWRITTEN_RHS
+    if (strcmp(mode, "bare") == 0 || strcmp(mode, "check") == 0) {
+        fprintf(stderr, "%s has no hand-written right-hand side (only the three thesis pendulums have one)\n",
+                MODEL_IDENTIFIER_STRING);
+        return 3;
+    }
+#endif
+    if (strcmp(mode, "generated") == 0) {
+        run_generated(steps, &result);
+        printf("%.17g\n", result);
+        return 0;
+    }
+#ifdef HAVE_HANDWRITTEN_RHS
+    if (strcmp(mode, "bare") == 0) {
+        run_bare(steps, &result);
+        printf("%.17g\n", result);
+        return 0;
+    }
+    if (strcmp(mode, "check") == 0) {
+        const double worst = check_against_generated(steps);
+        printf("%s: hand-written against generated derivatives at %ld random states: largest relative difference "
+               "%.3g\n", MODEL_IDENTIFIER_STRING, steps, worst);
+        return worst <= CHECK_LIMIT ? 0 : 1;
+    }
+#endif
+    if (strcmp(mode, "fmu") != 0 && strcmp(mode, "both") != 0) {
+        fprintf(stderr, "unknown mode %s: expected fmu, generated, bare, check or both\n", mode);
+        return 2;
+    }
     lib = dlopen(argv[1], RTLD_NOW | RTLD_LOCAL);
     if (!lib) {
         fprintf(stderr, "cannot load %s: %s\n", argv[1], dlerror());
@@ -145,30 +322,11 @@ int main(int argc, char **argv)
     *(void **)&api.exit_init = symbol(lib, "fmi2ExitInitializationMode");
     *(void **)&api.do_step = symbol(lib, "fmi2DoStep");
     *(void **)&api.free_instance = symbol(lib, "fmi2FreeInstance");
-
-    if (strcmp(argv[2], "fmu") == 0) {
-        run_fmu(&api, steps, &fmu_result);
-        printf("%.17g\n", fmu_result);
-    } else if (strcmp(argv[2], "bare") == 0) {
-        run_bare(steps, &bare_result);
-        printf("%.17g\n", bare_result);
+    if (strcmp(mode, "fmu") == 0) {
+        run_fmu(&api, steps, &result);
+        printf("%.17g\n", result);
     } else {
-        enum { ROUNDS = 9 };
-        double ratios[ROUNDS], fmu_times[ROUNDS], bare_times[ROUNDS];
-        int r;
-        for (r = 0; r < ROUNDS; r++) { /* alternate, so that machine noise hits both alike */
-            fmu_times[r] = run_fmu(&api, steps, &fmu_result);
-            bare_times[r] = run_bare(steps, &bare_result);
-            ratios[r] = fmu_times[r] / bare_times[r];
-        }
-        qsort(ratios, ROUNDS, sizeof(double), compare);
-        qsort(fmu_times, ROUNDS, sizeof(double), compare);
-        qsort(bare_times, ROUNDS, sizeof(double), compare);
-        printf("{\"model\": \"%s\", \"steps\": %ld, \"fmu_ns_per_step\": %.2f, \"bare_ns_per_step\": %.2f, "
-               "\"median_ratio\": %.4f, \"same_result\": %s}\n",
-               MODEL_IDENTIFIER_STRING, steps, 1e9 * fmu_times[ROUNDS / 2] / steps,
-               1e9 * bare_times[ROUNDS / 2] / steps, ratios[ROUNDS / 2],
-               fmu_result == bare_result ? "true" : "false");
+        time_all(&api, steps);
     }
     dlclose(lib);
     return 0;

@@ -2,9 +2,14 @@
 """Benchmarks of the FMUs, as ratios measured side by side in one run, plus machine-independent
 counts (instructions under callgrind, right-hand-side evaluations).
 
-1. Cost of one internal RK4 step inside fmi2DoStep against a bare C loop of the same right-hand side
-   (benchmarks/rk4_overhead.c): time ratio (median of interleaved repeats) and instruction ratio.
+1. Cost of one internal RK4 step inside fmi2DoStep (all steps in one call) against textbook RK4
+   loops in plain C (benchmarks/rk4_overhead.c): over the generated right-hand side, and over a
+   hand-written one (benchmarks/handwritten_rhs.h). Time ratios are medians of interleaved repeats;
+   instructions per step come from callgrind. The goal: at most 1.10 times the instructions of the
+   hand-written loop.
 2. Right-hand-side evaluations per accepted step for every method.
+3. Agreement of the generated thesis pendulums with the hand-written FMUs they replaced
+   (benchmarks/agreement_with_handwritten.py).
 """
 from __future__ import annotations
 
@@ -13,6 +18,7 @@ import json
 import shutil
 import subprocess
 import sys
+import tempfile
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -20,52 +26,69 @@ sys.path.insert(0, str(ROOT))
 
 from harness.fmu_instance import FmuInstance  # noqa: E402
 from harness.fmus import build_dir, build_fmus  # noqa: E402
+from harness.methods import SOLVERS  # noqa: E402
 
+import agreement_with_handwritten  # noqa: E402  (beside this file)
+
+# The objects with a hand-written right-hand side in benchmarks/handwritten_rhs.h.
 PENDULUMS = ("SimplePendulum", "DoublePendulum", "SpringPendulum")
-SOLVERS = ("euler", "midpoint", "heun", "rk3", "rk4", "rkf45", "nystrom5", "ab2", "ab3", "ab4", "ab5", "ab6")
+INSTRUCTION_GOAL = 1.10  # FMU instructions per internal step / hand-written loop's
+MODES = ("fmu", "generated", "bare")  # bare: the hand-written right-hand side
 
 
-def bench(model: str, mode: str, steps: int, valgrind: bool = False) -> str:
-    command = [str(build_dir() / "bin" / f"bench_{model}"), str(build_dir() / "lib" / model / f"{model}.so"), mode,
-               str(steps)]
-    if valgrind:
-        out = Path(f"/tmp/callgrind.{model}.{mode}.{steps}")
-        subprocess.run(["valgrind", "--tool=callgrind", f"--callgrind-out-file={out}"] + command, check=True,
-                       capture_output=True)
+def bench_command(model: str, mode: str, count: int) -> list[str]:
+    return [str(build_dir() / "bin" / f"bench_{model}"), str(build_dir() / "lib" / model / f"{model}.so"), mode,
+            str(count)]
+
+
+def run_bench(model: str, mode: str, count: int) -> str:
+    result = subprocess.run(bench_command(model, mode, count), capture_output=True, text=True)
+    if result.returncode != 0:
+        raise SystemExit(f"bench_{model} {mode} {count} failed (exit code {result.returncode}): "
+                         f"{result.stderr.strip() or result.stdout.strip()}")
+    return result.stdout
+
+
+def instructions(model: str, mode: str, steps: int) -> int:
+    """Instructions of one whole run of the bench program under callgrind."""
+    with tempfile.TemporaryDirectory() as folder:
+        out = Path(folder) / "callgrind.out"
+        subprocess.run(["valgrind", "--tool=callgrind", f"--callgrind-out-file={out}"]
+                       + bench_command(model, mode, steps), check=True, capture_output=True)
         summary = next(line for line in out.read_text().splitlines() if line.startswith(("summary:", "totals:")))
-        out.unlink()
-        return summary.split()[1]
-    return subprocess.run(command, check=True, capture_output=True, text=True).stdout
+    return int(summary.split()[1])
 
 
 def instructions_per_step(model: str, mode: str, steps: int) -> float:
     """Difference of two runs (steps and 2 steps) removes the setup's instructions."""
-    return (int(bench(model, mode, 2 * steps, True)) - int(bench(model, mode, steps, True))) / steps
+    return (instructions(model, mode, 2 * steps) - instructions(model, mode, steps)) / steps
 
 
-def main() -> int:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--steps", type=int, default=2_000_000, help="internal steps per timed run")
-    parser.add_argument("--callgrind-steps", type=int, default=100_000)
-    args = parser.parse_args()
-    build_fmus()
-
-    print("1. One internal RK4 step inside fmi2DoStep vs a bare C loop of the same right-hand side")
-    use_valgrind = shutil.which("valgrind") is not None
-    print(f"{'model':16s} {'FMU ns/step':>12s} {'bare ns/step':>13s} {'time ratio':>11s}"
-          + (f" {'FMU instr':>10s} {'bare instr':>11s} {'instr ratio':>12s}" if use_valgrind else ""))
+def step_cost(args: argparse.Namespace) -> None:
+    print("1. One internal RK4 step: the FMU (fmi2DoStep, all steps in one call) against textbook RK4 loops in C\n"
+          "   over the generated right-hand side (generated) and over a hand-written one (hand); no force acts")
     for model in PENDULUMS:
-        timing = json.loads(bench(model, "both", args.steps))
-        line = (f"{model:16s} {timing['fmu_ns_per_step']:12.1f} {timing['bare_ns_per_step']:13.1f} "
-                f"{timing['median_ratio']:11.3f}")
-        if use_valgrind:
-            fmu = instructions_per_step(model, "fmu", args.callgrind_steps)
-            bare = instructions_per_step(model, "bare", args.callgrind_steps)
-            line += f" {fmu:10.1f} {bare:11.1f} {fmu / bare:12.3f}"
-        print(line)
-    if not use_valgrind:
-        print("(valgrind not found: instruction counts skipped)")
+        print(f"   {model}: {run_bench(model, 'check', 10_000).split(': ', 1)[1].strip()}")
+    print(f"\n{'model':16s} {'FMU ns':>8s} {'gen ns':>8s} {'hand ns':>8s} {'FMU/gen':>8s} {'FMU/hand':>9s}"
+          "   (time per step: medians of 9 interleaved repeats)")
+    for model in PENDULUMS:
+        timing = json.loads(run_bench(model, "both", args.steps))
+        print(f"{model:16s} {timing['fmu_ns_per_step']:8.1f} {timing['generated_ns_per_step']:8.1f} "
+              f"{timing['bare_ns_per_step']:8.1f} {timing['fmu_to_generated']:8.3f} {timing['fmu_to_bare']:9.3f}")
 
+    if shutil.which("valgrind") is None:
+        print("(valgrind not found: instruction counts skipped)")
+        return
+    print(f"\n{'model':16s} {'FMU instr':>10s} {'gen instr':>10s} {'hand instr':>11s} {'FMU/gen':>8s} {'FMU/hand':>9s}"
+          f"   (instructions per step, callgrind; goal FMU/hand <= {INSTRUCTION_GOAL:.2f})")
+    for model in PENDULUMS:
+        fmu, generated, hand = (instructions_per_step(model, mode, args.callgrind_steps) for mode in MODES)
+        ratio = fmu / hand
+        verdict = "PASS" if ratio <= INSTRUCTION_GOAL else "over"
+        print(f"{model:16s} {fmu:10.1f} {generated:10.1f} {hand:11.1f} {fmu / generated:8.3f} {ratio:9.3f}   {verdict}")
+
+
+def evaluations_per_step() -> None:
     print("\n2. Right-hand-side evaluations per accepted step (DoublePendulum, 10 s, h = 0.01, tol = 1e-6)")
     print(f"{'solver':10s} {'n_rhs':>8s} {'n_steps':>8s} {'n_rejected':>10s} {'rhs/step':>9s}")
     fmu_path = build_dir() / "fmus" / "DoublePendulum.fmu"
@@ -76,6 +99,20 @@ def main() -> int:
                 fmu.do_step(i * 0.1, 0.1)
             n_rhs, n_steps, n_rejected = fmu.get("n_rhs", "n_steps", "n_rejected")
         print(f"{solver:10s} {n_rhs:8d} {n_steps:8d} {n_rejected:10d} {n_rhs / n_steps:9.3f}")
+
+
+def main() -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--steps", type=int, default=2_000_000, help="internal steps per timed run")
+    parser.add_argument("--callgrind-steps", type=int, default=100_000)
+    parser.add_argument("--no-agreement", action="store_true", help="skip section 3 (it rebuilds the old FMUs)")
+    args = parser.parse_args()
+    build_fmus()
+    step_cost(args)
+    evaluations_per_step()
+    if not args.no_agreement:
+        print("\n3. ", end="")
+        return agreement_with_handwritten.agreement()
     return 0
 
 

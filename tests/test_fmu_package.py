@@ -4,6 +4,7 @@ from __future__ import annotations
 import shutil
 import subprocess
 import sys
+import tomllib
 import zipfile
 from pathlib import Path
 
@@ -14,6 +15,7 @@ from fmpy import read_model_description
 from fmpy.validation import validate_fmu
 
 from harness.fmus import FMU_NAMES, PROJECT_ROOT
+from harness.objects.registry import object_names
 from harness.simulation import simulate
 
 SPEC_DEFAULTS = {
@@ -43,8 +45,18 @@ def test_contents_and_spec_defaults(fmu_paths, name):
     assert "<h2>Equations</h2>" in html and "<h2>Variables</h2>" in html
     md = read_model_description(str(fmu_paths[name]))
     variables = {v.name: v for v in md.modelVariables}
-    for variable, value in SPEC_DEFAULTS[name].items():
+    for variable, value in SPEC_DEFAULTS.get(name, {}).items():
         assert float(variables[variable].start) == pytest.approx(value, rel=1e-15), variable
+    if name in object_names():
+        # The object file travels in the FMU, and its defaults (read here with plain tomllib) are the
+        # FMU's start values.
+        data = tomllib.loads(archive_text(fmu_paths[name], f"sources/{name}.toml"))
+        for section in ("parameters", "coordinates"):
+            for variable, entry in data[section].items():
+                if "start" in entry:
+                    assert float(variables[variable].start) == entry["start"], variable
+                if section == "coordinates":
+                    assert float(variables[entry["velocity"]].start) == entry.get("velocity_start", 0.0)
     if name != "Spring":
         assert PENDULUM_OUTPUTS <= {n for n, v in variables.items() if v.causality == "output"}
         assert [item.name for item in variables["solver"].declaredType.items] == SOLVERS
@@ -54,6 +66,11 @@ def test_contents_and_spec_defaults(fmu_paths, name):
     assert cs.canHandleVariableCommunicationStepSize and cs.canGetAndSetFMUstate and cs.canSerializeFMUstate
     assert cs.canInterpolateInputs and cs.maxOutputDerivativeOrder == 1
     assert md.modelExchange is not None
+
+
+def archive_text(fmu: Path, member: str) -> str:
+    with zipfile.ZipFile(fmu) as archive:
+        return archive.read(member).decode()
 
 
 def test_guids_are_distinct(fmu_paths):

@@ -3,19 +3,17 @@ numeric route, and `harness derive` end to end. Nothing here is specific to one 
 object file in the registry is checked the same way."""
 from __future__ import annotations
 
-import os
 import subprocess
 import sys
 import tempfile
 from pathlib import Path
 
-import numpy as np
 import pytest
 from fmpy import read_model_description
 
-from harness.fmu_instance import FmuInstance
 from harness.objects.derivation import derive
-from harness.objects.numeric_route import NumericLagrangian
+from harness.objects.build import derive_fmu
+from harness.objects.proof import numeric_route_agreement, object_file_in, observed_order, prove
 from harness.objects.object_file import ObjectFileError, read_object_file
 from harness.objects.registry import object_files, object_names
 
@@ -93,53 +91,37 @@ def test_derive_builds_a_valid_fmu_that_moves_as_the_numeric_route_says(tmp_path
     names = {v.name for v in md.modelVariables}
     assert {"x", "phi", "v", "omega", "push_x", "push_y", "cart_x", "bob_v_y", "E_kin", "E", "model",
             "n_rhs"} <= names
-    check_against_numeric_route(fmu, path, samples=4)
-
-
-def check_against_numeric_route(fmu: Path, object_file: Path, samples: int, seed: int = 7) -> float:
-    """Largest relative deviation of the FMU's accelerations (Model Exchange) from the numeric route."""
-    spec = read_object_file(object_file)
-    route = NumericLagrangian(spec)
-    rng = np.random.default_rng(seed)
-    worst = 0.0
-    instance = FmuInstance(fmu, kind="ME")
-    try:
-        defaults = {p.name: p.start for p in spec.parameters}
-        instance.initialize()
-        assert instance.call("fmi2EnterContinuousTimeMode") == 0
-        n = len(spec.coordinates)
-        inputs = [name for force in spec.forces for name in force.inputs.values()]
-        for _ in range(samples):
-            values = dict(defaults)
-            for c in spec.coordinates:
-                values[c.name] = c.start + rng.uniform(-0.3, 0.3)
-                values[c.velocity] = c.velocity_start + rng.uniform(-1.0, 1.0)
-            values.update({name: rng.uniform(-2.0, 2.0) for name in inputs})
-            states = [values[c.name] for c in spec.coordinates] + [values[c.velocity] for c in spec.coordinates]
-            assert instance.call("fmi2SetContinuousStates", (ctypes_array(states)), 2 * n) == 0
-            if inputs:
-                assert instance.set(**{name: values[name] for name in inputs}) == 0
-            derivatives = (ctypes_array([0.0] * 2 * n))
-            assert instance.call("fmi2GetDerivatives", derivatives, 2 * n) == 0
-            got = np.array(derivatives[n:])
-            expected = route.accelerations(values)
-            assert np.allclose(derivatives[:n], states[n:], rtol=0, atol=0)
-            deviation = np.max(np.abs(got - expected)) / max(1.0, np.max(np.abs(expected)))
-            worst = max(worst, deviation)
-            T, U = route.energies(values)
-            E_kin, E_pot = instance.get("E_kin", "E_pot")
-            assert E_kin == pytest.approx(T, rel=1e-12, abs=1e-12) and E_pot == pytest.approx(U, rel=1e-12, abs=1e-12)
-    finally:
-        instance.free()
-    assert worst < 1e-9, worst
-    return worst
-
-
-def ctypes_array(values):
-    import ctypes
-    return (ctypes.c_double * len(values))(*values)
+    proof = numeric_route_agreement(fmu, object_file_in(fmu), samples=4)
+    assert proof.passed, proof.detail
 
 
 @pytest.mark.parametrize("name", object_names())
-def test_every_object_agrees_with_the_numeric_route(fmu_paths, name):
-    check_against_numeric_route(fmu_paths[name], dict(zip(object_names(), object_files()))[name], samples=5)
+def test_every_object_proves_itself(fmu_paths, name):
+    """The proof `harness validate` runs for any FMU made from an object file: numeric route,
+    every fixed-step method at its order (states and energy), rkf45 within its tolerance, Model
+    Exchange with CVode."""
+    spec = object_file_in(fmu_paths[name])
+    assert spec is not None and spec.identifier == name
+    failed = [f"{p.name}: {p.detail}" for p in prove(fmu_paths[name], spec) if not p.passed]
+    assert not failed, failed
+
+
+def test_the_proof_finds_an_fmu_that_does_not_follow_its_object_file(tmp_path):
+    """An FMU derived from one potential but carrying a file with another (gravity 1 % stronger)."""
+    fmu = derive_fmu(write(tmp_path, CART_PENDULUM), tmp_path / "out").path
+    changed = read_object_file(write(tmp_path, CART_PENDULUM.replace("-m*g*l*cos(phi)", "-1.01*m*g*l*cos(phi)"),
+                                     "changed.toml"))
+    proof = numeric_route_agreement(fmu, changed, samples=3)
+    assert not proof.passed and "largest relative deviation of the accelerations" in proof.detail, proof.detail
+    deviation = float(proof.detail.split("accelerations ")[1].split(",")[0])
+    assert 1e-4 < deviation < 1e-1
+
+
+def test_the_order_check_tells_a_wrong_order_from_a_right_one():
+    steps = [0.1 / 2 ** k for k in range(6)]
+    fourth = [3.0 * h ** 4 for h in steps]
+    assert observed_order(steps, fourth, 4, at_least=False)[0]
+    assert not observed_order(steps, fourth, 5, at_least=False)[0]
+    assert not observed_order(steps, fourth, 3, at_least=False)[0]
+    assert observed_order(steps, fourth, 3, at_least=True)[0]   # energy may fall faster than the order
+    assert not observed_order(steps, [1e-14] * 6, 4, at_least=False)[0]  # rounding only proves nothing

@@ -269,10 +269,8 @@ def main(argv: list[str] | None = None) -> int:
                                             f"the build compiles {sorted(s for s in args.sources if s.endswith('.c'))}")
             target = args.out / md.identifier
             (target / "documentation").mkdir(parents=True, exist_ok=True)
-            text = header(md, md.path.name)
-            path = target / "model_description.h"
-            if not path.exists() or path.read_text() != text:  # keep timestamps stable for make
-                path.write_text(text)
+            # Written also when unchanged: an output older than its inputs would make make rerun this.
+            (target / "model_description.h").write_text(header(md, md.path.name))
             beside = md.path.parent / "equations.html"  # a generated model description has its equations beside it
             equations = (beside if beside.is_file() else args.models / md.identifier / "equations.html").read_text()
             (target / "documentation" / "index.html").write_text(documentation(md, equations))

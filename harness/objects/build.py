@@ -65,6 +65,7 @@ def derive_fmu(object_file: str | Path, out: str | Path) -> DerivedFmu:
             shutil.copy(FRAMEWORK / name, sources / name)
         for name in ("physics.c", "physics.h", "model_description.h"):
             shutil.copy(folder / name, sources / name)
+        shutil.copy(object_file, sources / f"{generated.identifier}.toml")
         shutil.copy(folder / "modelDescription.xml", fmu / "modelDescription.xml")
         shutil.copy(folder / "documentation" / "index.html", fmu / "documentation" / "index.html")
         library = binaries / f"{generated.identifier}.so"

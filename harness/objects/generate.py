@@ -24,10 +24,10 @@ class GeneratedObject:
     derivation: Derivation
 
 
-def _write_if_changed(path: Path, text: str) -> None:
-    # unchanged files keep their timestamps, so make rebuilds nothing
-    if not path.exists() or path.read_text() != text:
-        path.write_text(text)
+def _write(path: Path, text: str) -> None:
+    # Always written, also when unchanged: make compares each output with the object file and the
+    # generator, and an output left older than them would be regenerated in every target that uses it.
+    path.write_text(text)
 
 
 def generate(object_file: str | Path, out: str | Path) -> GeneratedObject:
@@ -37,10 +37,10 @@ def generate(object_file: str | Path, out: str | Path) -> GeneratedObject:
     xml = model_description(derivation)
     folder = Path(out) / spec.identifier
     folder.mkdir(parents=True, exist_ok=True)
-    _write_if_changed(folder / "physics.h", code.header)
-    _write_if_changed(folder / "physics.c", code.source)
-    _write_if_changed(folder / "modelDescription.xml", xml)
-    _write_if_changed(folder / "equations.html", equations_html(derivation))
+    _write(folder / "physics.h", code.header)
+    _write(folder / "physics.c", code.source)
+    _write(folder / "modelDescription.xml", xml)
+    _write(folder / "equations.html", equations_html(derivation))
     return GeneratedObject(spec.identifier, folder, derivation)
 
 

@@ -192,12 +192,13 @@ class _Reader:
         return expr
 
 
-def read_object_file(path: str | Path) -> ObjectSpec:
-    """Reads and checks an object file; raises ObjectFileError with a one-line message."""
+def read_object_file(path: str | Path, text: str | None = None) -> ObjectSpec:
+    """Reads and checks an object file (text, when given, is its content: path then only names it);
+    raises ObjectFileError with a one-line message."""
     path = Path(path)
     reader = _Reader(path)
     try:
-        data = tomllib.loads(path.read_text(encoding="utf-8"))
+        data = tomllib.loads(path.read_text(encoding="utf-8") if text is None else text)
     except OSError as error:
         raise ObjectFileError(f"{path}: cannot be read ({error.strerror or error})") from None
     except UnicodeDecodeError:

@@ -1,0 +1,236 @@
+"""The proof of any FMU made from an object file, with nothing specific to one object.
+
+Every FMU built from an object file carries that file as `sources/<identifier>.toml`; from it:
+
+* accelerations and energies against the independent numeric route (harness.objects.numeric_route:
+  plain evaluation of T, U and the points, high-precision finite differences, never the symbolic
+  derivation or the generated C), at random parameters, states, inputs and times;
+* every fixed-step method converges at its order, measured on the differences of runs at halved
+  steps (no reference solution needed), and, where T and U do not depend on time, the energy error
+  falls at least at that order;
+* rkf45 keeps its global error within a small multiple of its tolerance;
+* Model Exchange with fmpy's CVode ends where the Co-Simulation FMU does.
+
+The time scale of every run is the object's own default step `h`: the object file's author chose it.
+"""
+from __future__ import annotations
+
+import ctypes
+import math
+import zipfile
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from harness.errors import HarnessError
+from harness.fmu_instance import OK, FmuInstance, read_fmi2_description
+from harness.methods import METHODS
+from harness.objects.numeric_route import NumericLagrangian
+from harness.objects.object_file import FRAMEWORK_PARAMETERS, ObjectFileError, ObjectSpec, read_object_file
+
+STEP_RATIOS = [2.0 ** (3 - k) for k in range(9)]  # run steps: 8 h ... h / 32 of the object's default h
+RUN_STEPS = 128                                     # run length in default steps
+ROUNDING_FLOOR = 1e-12                       # differences below this are rounding, not truncation
+
+
+@dataclass
+class Proof:
+    name: str
+    passed: bool
+    detail: str
+
+
+def object_file_in(fmu: str | Path) -> ObjectSpec | None:
+    """The object file an FMU carries, or None for an FMU not made from one."""
+    fmu = Path(fmu)
+    md = read_fmi2_description(fmu)
+    interface = md.coSimulation or md.modelExchange
+    member = f"sources/{interface.modelIdentifier}.toml"
+    with zipfile.ZipFile(fmu) as archive:
+        if member not in archive.namelist():
+            return None
+        text = archive.read(member).decode("utf-8", errors="replace")
+    try:
+        return read_object_file(f"{fmu.name}:{member}", text)
+    except ObjectFileError as error:
+        raise HarnessError(str(error)) from None
+
+
+def prove(fmu: str | Path, spec: ObjectSpec, samples: int = 6) -> list[Proof]:
+    fmu = Path(fmu)
+    return [numeric_route_agreement(fmu, spec, samples), *method_orders(fmu, spec),
+            model_exchange_with_cvode(fmu, spec)]
+
+
+# ---- the equations against the numeric route
+
+def random_values(spec: ObjectSpec, rng: np.random.Generator) -> dict[str, float]:
+    """Parameters within 20 % of their defaults (and in range), coordinates within 0.3 and velocities
+    within 1 of their starts, force inputs up to 2 N, damping up to 0.3, time up to 1 s if it matters."""
+    values: dict[str, float] = {}
+    for p in spec.parameters:
+        if p.name in FRAMEWORK_PARAMETERS:
+            continue
+        value = p.start * rng.uniform(0.8, 1.2)
+        values[p.name] = float(np.clip(value, -np.inf if p.min is None else p.min, np.inf if p.max is None else p.max))
+    values["d"] = rng.uniform(0.0, 0.3)
+    for c in spec.coordinates:
+        values[c.name] = c.start + rng.uniform(-0.3, 0.3)
+        values[c.velocity] = c.velocity_start + rng.uniform(-1.0, 1.0)
+    for force in spec.forces:
+        values.update({name: rng.uniform(-2.0, 2.0) for name in force.inputs.values()})
+    values["t"] = rng.uniform(0.0, 1.0) if spec.rheonomic else 0.0
+    return values
+
+
+def numeric_route_agreement(fmu: Path, spec: ObjectSpec, samples: int, seed: int = 7,
+                            tolerance: float = 1e-9) -> Proof:
+    """Largest relative deviation of the FMU's accelerations (Model Exchange) from the numeric route,
+    and its E_kin, E_pot against T and U evaluated plainly."""
+    route = NumericLagrangian(spec)
+    rng = np.random.default_rng(seed)
+    n = len(spec.coordinates)
+    inputs = [name for force in spec.forces for name in force.inputs.values()]
+    parameters = [p.name for p in spec.parameters if p.name not in FRAMEWORK_PARAMETERS] + ["d"]
+    worst = worst_energy = 0.0
+    problems: list[str] = []
+    done = tries = 0
+    with FmuInstance(fmu, kind="ME") as instance:
+        while done < samples and tries < 10 * samples:
+            tries += 1
+            values = random_values(spec, rng)
+            instance.call("fmi2Reset")
+            instance.initialize(start_time=values["t"], **{name: values[name] for name in parameters})
+            states = [values[c.name] for c in spec.coordinates] + [values[c.velocity] for c in spec.coordinates]
+            derivatives = (ctypes.c_double * (2 * n))()
+            status = max(instance.call("fmi2EnterContinuousTimeMode"),
+                         instance.call("fmi2SetTime", ctypes.c_double(values["t"])),
+                         instance.call("fmi2SetContinuousStates", (ctypes.c_double * (2 * n))(*states), 2 * n),
+                         instance.set(**{name: values[name] for name in inputs}))
+            if status != OK:
+                problems.append(f"setting a state returned {status}: {instance.last_message()}")
+                break
+            if instance.call("fmi2GetDerivatives", derivatives, 2 * n) != OK:
+                continue  # a singular sample (outside `require`): the FMU said so; draw another
+            expected = route.accelerations(values, values["t"])
+            got = np.array(derivatives[n:])
+            if list(derivatives[:n]) != states[n:]:
+                problems.append("dq/dt is not the velocity state")
+            worst = max(worst, float(np.max(np.abs(got - expected)) / max(1.0, float(np.max(np.abs(expected))))))
+            T, U = route.energies(values, values["t"])
+            E_kin, E_pot = instance.get("E_kin", "E_pot")
+            worst_energy = max(worst_energy, abs(E_kin - T) / max(1.0, abs(T)), abs(E_pot - U) / max(1.0, abs(U)))
+            done += 1
+    if done < samples and not problems:
+        problems.append(f"only {done} of {samples} random states were regular")
+    passed = not problems and worst < tolerance and worst_energy < 1e-12
+    detail = (f"largest relative deviation of the accelerations {worst:.1e}, of E_kin and E_pot {worst_energy:.1e} "
+              f"at {done} random parameters, states, inputs{' and times' if spec.rheonomic else ''}")
+    return Proof("equations = numeric route (finite differences of plain T, U)", passed,
+                 detail + ("; " + "; ".join(problems) if problems else ""))
+
+
+# ---- orders of the methods
+
+def default_step(fmu: FmuInstance) -> float:
+    return float(fmu.variables["h"].start)
+
+
+def _states_and_energy(instance: FmuInstance, spec: ObjectSpec) -> tuple[np.ndarray, float]:
+    names = [c.name for c in spec.coordinates] + [c.velocity for c in spec.coordinates]
+    return np.array(instance.get(*names)), instance.get("E")[0]
+
+
+def _run(instance: FmuInstance, spec: ObjectSpec, duration: float, **settings) -> tuple[np.ndarray, float, float]:
+    """States and energy at `duration`, and the energy at the start; d = 0, no forces. A run the FMU
+    discards (a coarse step may leave the method's stability region) gives NaN."""
+    instance.call("fmi2Reset")
+    instance.initialize(d=0.0, **settings)
+    _, start_energy = _states_and_energy(instance, spec)
+    if instance.do_step(0.0, duration) != OK:
+        return np.full(2 * len(spec.coordinates), np.nan), math.nan, start_energy
+    states, energy = _states_and_energy(instance, spec)
+    return states, energy, start_energy
+
+
+def observed_order(steps: list[float], errors: list[float], order: int, at_least: bool) -> tuple[bool, str]:
+    """Passes where three consecutive errors above rounding fall with the order (within 0.5, or at
+    least at the order less 0.3 when `at_least`): a pre-asymptotic start and a rounding floor are
+    allowed, so the best such window counts. 0.5 separates neighbouring orders and leaves room for a
+    chaotic object's approach to its asymptotic range."""
+    def closeness(measured: float) -> tuple[float, float]:
+        return (max(0.0, order - measured) if at_least else 0.0), abs(measured - order)
+
+    windows = [(float(np.polyfit(np.log(steps[k:k + 3]), np.log(errors[k:k + 3]), 1)[0]), k)
+               for k in range(len(errors) - 2) if min(errors[k:k + 3]) > ROUNDING_FLOOR and max(errors[k:k + 3]) < 1.0]
+    if not windows:
+        return False, "every difference at rounding level"
+    measured, k = min(windows, key=lambda window: closeness(window[0]))
+    passed = measured >= order - 0.3 if at_least else abs(measured - order) <= 0.5
+    return passed, f"{measured:.2f} at h = {steps[k]:.3g} ... {steps[k + 2]:.3g}"
+
+
+def method_orders(fmu: Path, spec: ObjectSpec) -> list[Proof]:
+    proofs = []
+    with FmuInstance(fmu) as instance:
+        h = default_step(instance)
+        duration = RUN_STEPS * h
+        steps = [h * r for r in STEP_RATIOS]
+        finest = None
+        for method in METHODS:
+            if not method.fixed_step:
+                continue
+            runs = [_run(instance, spec, duration, solver=method.name, h=step) for step in steps]
+            differences = [float(np.max(np.abs(a[0] - b[0]))) for a, b in zip(runs, runs[1:])]
+            passed, detail = observed_order(steps[:-1], differences, method.order, at_least=False)
+            text = f"states {detail}"
+            if not spec.rheonomic:
+                drift = [abs(energy - start) / max(1.0, abs(start)) for _, energy, start in runs]
+                energy_passed, energy_detail = observed_order(steps, drift, method.order, at_least=True)
+                passed = passed and energy_passed
+                text += f"; energy error {energy_detail}"
+            proofs.append(Proof(f"order of {method.name} (theory {method.order})", passed,
+                                f"{text}, over {duration:g} s"))
+            if method.name == "nystrom5":
+                finest = runs[-1][0]
+        if finest is not None:
+            proofs.append(_tolerance_kept(instance, spec, duration, finest))
+    if spec.rheonomic:
+        proofs.append(Proof("energy", True, "T or U depends on time: the energy is not conserved, not checked"))
+    return proofs
+
+
+def _tolerance_kept(instance: FmuInstance, spec: ObjectSpec, duration: float, reference: np.ndarray) -> Proof:
+    scale = 1.0 + float(np.max(np.abs(reference)))
+    errors = {}
+    for tol in (1e-5, 1e-8):
+        states, _, _ = _run(instance, spec, duration, solver="rkf45", tol=tol)
+        errors[tol] = float(np.max(np.abs(states - reference))) / scale
+    passed = all(error <= 100 * tol for tol, error in errors.items())
+    return Proof("rkf45 keeps its tolerance", passed,
+                 ", ".join(f"global error {error:.1e} at tol {tol:g}" for tol, error in errors.items())
+                 + f" over {duration:g} s (limit 100 tol)")
+
+
+# ---- Model Exchange
+
+def model_exchange_with_cvode(fmu: Path, spec: ObjectSpec) -> Proof:
+    from fmpy import simulate_fmu
+    names = [c.name for c in spec.coordinates] + [c.velocity for c in spec.coordinates]
+    with FmuInstance(fmu) as instance:
+        h = default_step(instance)
+        duration = RUN_STEPS * h
+        reference, _, _ = _run(instance, spec, duration, solver="nystrom5", h=h / 16)
+    try:
+        result = simulate_fmu(str(fmu), fmi_type="ModelExchange", solver="CVode", stop_time=duration,
+                              relative_tolerance=1e-10, output_interval=duration / 16, start_values={"d": 0.0},
+                              output=names)
+    except Exception as error:  # fmpy raises plain exceptions for a failing FMU call
+        return Proof("Model Exchange with CVode", False, f"fmpy's CVode failed: {str(error).splitlines()[0]}")
+    final = np.array([result[name][-1] for name in names])
+    deviation = float(np.max(np.abs(final - reference))) / (1.0 + float(np.max(np.abs(reference))))
+    passed = bool(np.all(np.isfinite(final))) and math.isclose(result["time"][-1], duration) and deviation < 1e-6
+    return Proof("Model Exchange with CVode", passed,
+                 f"fmpy's CVode (rtol 1e-10) ends {deviation:.1e} (relative) from Co-Simulation nystrom5 "
+                 f"after {duration:g} s")
