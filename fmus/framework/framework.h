@@ -105,10 +105,12 @@ int state_acceptable(const void *context, double t, const double *x);
 #endif
 
 /* ---- implemented by each model: physics.h defines ModelConst and, for a model with states,
- * static inline void model_derivatives(const ModelConst *c, double t, const double *x,
- *                                      const double *u, double *dx)
- * (dx = f(t, x, u); u == NULL when every input is zero and constant, so that force terms can be
- * skipped); physics.c defines the rest. ---- */
+ * static inline void model_equations(const ModelConst *c, double t, const double *x,
+ *                                    const double *u, double *dx)
+ * (dx = f(t, x, u) of the integrators; u == NULL when every input is zero and constant, so that
+ * force terms can be skipped) and model_derivatives (the same signature: the model selected by a
+ * model's own switch, such as its linear model, for Model Exchange and the outputs); physics.c
+ * defines the rest. ---- */
 
 /* Derived constants from the parameters (after initialization and after a tunable change); returns
  * 0, or 1 with a message when the parameters together are inconsistent. */

@@ -76,8 +76,17 @@ typedef struct {
     const ModelConst *model;
     const double *u0, *du;
     double t0;
-    int inputs_vary, forces;
 } Evaluator;
+
+/* How the inputs enter a loop. The fixed-step loops are compiled once per mode with the mode a
+ * constant, so each stage inlines one copy of the model: without force terms for FORCES_NONE, and
+ * the compiler's pairing of sin and cos of one angle reaches every stage. */
+enum { FORCES_NONE, FORCES_HELD, FORCES_VARY };
+
+static int forces_mode(const RightHandSide *f)
+{
+    return f->inputs_vary ? FORCES_VARY : f->forces ? FORCES_HELD : FORCES_NONE;
+}
 
 ENGINE_INLINE Evaluator evaluator_of(const RightHandSide *f)
 {
@@ -86,62 +95,59 @@ ENGINE_INLINE Evaluator evaluator_of(const RightHandSide *f)
     e.u0 = f->u0;
     e.du = f->du;
     e.t0 = f->t0;
-    e.inputs_vary = f->inputs_vary;
-    e.forces = f->forces;
     return e;
 }
 
-ENGINE_INLINE void evaluate(const Evaluator *f, double t, const double *x, double *dx)
+ENGINE_INLINE void evaluate(const Evaluator *f, int mode, double t, const double *x, double *dx)
 {
-    if (f->inputs_vary) {
+    if (mode == FORCES_VARY) {
         double u[INPUT_SLOTS];
         int i;
         for (i = 0; i < N_INPUTS; i++) u[i] = f->u0[i] + (t - f->t0) * f->du[i];
-        model_derivatives(f->model, t, x, u, dx);
-    } else if (f->forces) {
-        model_derivatives(f->model, t, x, f->u0, dx);
+        model_equations(f->model, t, x, u, dx);
+    } else if (mode == FORCES_HELD) {
+        model_equations(f->model, t, x, f->u0, dx);
     } else {
-        model_derivatives(f->model, t, x, NULL, dx); /* the force terms vanish when inlined */
+        model_equations(f->model, t, x, NULL, dx); /* the force terms vanish when inlined */
     }
+}
+
+/* sum_j w_j k[j][i] over the nonzero weights, started at the first term: with constant weights the
+ * compiler drops the zeros, and no 0.0 + w k remains (IEEE rules forbid removing it). */
+ENGINE_INLINE double weighted_sum(const double *w, int count, double (*k)[STATE_SLOTS], int i)
+{
+    double sum = 0.0;
+    int j, started = 0;
+    UNROLL for (j = 0; j < count; j++) {
+        if (w[j] != 0.0) {
+            sum = started ? sum + w[j] * k[j][i] : w[j] * k[j][i];
+            started = 1;
+        }
+    }
+    return sum;
 }
 
 /* One explicit Runge-Kutta step of tableau tab, in place on x; f0 = f(t, x) is given so that the
- * Adams-Bashforth start can keep it. Zero coefficients are skipped: with a constant tableau the
- * compiler removes them. err (optional) receives h * sum(e_j k_j). */
-ENGINE_INLINE void runge_kutta_step(const Evaluator *f, const ButcherTableau *tab, double t, double h, double *x,
-                                    const double *f0, double *err)
+ * Adams-Bashforth start can keep it. err (optional) receives h * sum(e_j k_j). */
+ENGINE_INLINE void runge_kutta_step(const Evaluator *f, int mode, const ButcherTableau *tab, double t, double h,
+                                    double *x, const double *f0, double *err)
 {
     double k[RK_MAX_STAGES][STATE_SLOTS];
     double y[STATE_SLOTS];
-    int s, j, i;
+    int s, i;
     UNROLL for (i = 0; i < N_STATES; i++) k[0][i] = f0[i];
     UNROLL for (s = 1; s < tab->stages; s++) {
-        UNROLL for (i = 0; i < N_STATES; i++) {
-            double sum = 0.0;
-            UNROLL for (j = 0; j < s; j++)
-                if (tab->a[s][j] != 0.0) sum += tab->a[s][j] * k[j][i];
-            y[i] = x[i] + h * sum;
-        }
-        evaluate(f, t + tab->c[s] * h, y, k[s]);
+        UNROLL for (i = 0; i < N_STATES; i++) y[i] = x[i] + h * weighted_sum(tab->a[s], s, k, i);
+        evaluate(f, mode, t + tab->c[s] * h, y, k[s]);
     }
     if (err) {
-        UNROLL for (i = 0; i < N_STATES; i++) {
-            double sum = 0.0;
-            UNROLL for (j = 0; j < tab->stages; j++)
-                if (tab->e[j] != 0.0) sum += tab->e[j] * k[j][i];
-            err[i] = h * sum;
-        }
+        UNROLL for (i = 0; i < N_STATES; i++) err[i] = h * weighted_sum(tab->e, tab->stages, k, i);
     }
-    UNROLL for (i = 0; i < N_STATES; i++) {
-        double sum = 0.0;
-        UNROLL for (j = 0; j < tab->stages; j++)
-            if (tab->b[j] != 0.0) sum += tab->b[j] * k[j][i];
-        x[i] += h * sum;
-    }
+    UNROLL for (i = 0; i < N_STATES; i++) x[i] += h * weighted_sum(tab->b, tab->stages, k, i);
 }
 
-ENGINE_INLINE int64_t runge_kutta_loop(RightHandSide *f, const ButcherTableau *tab, double *x, double t0, double hs,
-                                       int64_t n, int check_each)
+ENGINE_INLINE int64_t runge_kutta_loop(RightHandSide *f, int mode, const ButcherTableau *tab, double *x, double t0,
+                                       double hs, int64_t n, int check_each)
 {
     const Evaluator e = evaluator_of(f);
     double f0[STATE_SLOTS], saved[STATE_SLOTS];
@@ -149,8 +155,8 @@ ENGINE_INLINE int64_t runge_kutta_loop(RightHandSide *f, const ButcherTableau *t
     for (i = 0; i < n; i++) {
         const double t = t0 + (double)i * hs;
         if (check_each) memcpy(saved, x, sizeof saved);
-        evaluate(&e, t, x, f0);
-        runge_kutta_step(&e, tab, t, hs, x, f0, NULL);
+        evaluate(&e, mode, t, x, f0);
+        runge_kutta_step(&e, mode, tab, t, hs, x, f0, NULL);
         if (check_each && !f->acceptable(f->context, t + hs, x)) {
             memcpy(x, saved, sizeof saved);
             f->evaluations += (uint64_t)(i + 1) * (uint64_t)tab->stages;
@@ -163,7 +169,7 @@ ENGINE_INLINE int64_t runge_kutta_loop(RightHandSide *f, const ButcherTableau *t
 
 /* Adams-Bashforth: x(k+1) = x(k) + h sum beta_j f(k-j). Until enough history exists the starter
  * Runge-Kutta method steps, and its first stage, f(k), goes into the history all the same. */
-ENGINE_INLINE int64_t adams_bashforth_loop(RightHandSide *f, const AdamsBashforth *ab, IntegratorMemory *m,
+ENGINE_INLINE int64_t adams_bashforth_loop(RightHandSide *f, int mode, const AdamsBashforth *ab, IntegratorMemory *m,
                                            double *x, double t0, double hs, int64_t n, int check_each)
 {
     const Evaluator e = evaluator_of(f);
@@ -180,16 +186,16 @@ ENGINE_INLINE int64_t adams_bashforth_loop(RightHandSide *f, const AdamsBashfort
         }
         m->ab_head = (m->ab_head + 1) % AB_MAX_STEPS;
         newest = m->ab_history[m->ab_head];
-        evaluate(&e, t, x, newest);
+        evaluate(&e, mode, t, x, newest);
         f->evaluations++;
         if (m->ab_count < AB_MAX_STEPS) m->ab_count++;
         if (m->ab_count < ab->steps) {
-            runge_kutta_step(&e, ab->starter, t, hs, x, newest, NULL);
+            runge_kutta_step(&e, mode, ab->starter, t, hs, x, newest, NULL);
             f->evaluations += (uint64_t)(ab->starter->stages - 1);
         } else {
             UNROLL for (q = 0; q < N_STATES; q++) {
-                double sum = 0.0;
-                UNROLL for (j = 0; j < ab->steps; j++)
+                double sum = ab->beta[0] * newest[q];
+                UNROLL for (j = 1; j < ab->steps; j++)
                     sum += ab->beta[j] * m->ab_history[(m->ab_head - j + AB_MAX_STEPS) % AB_MAX_STEPS][q];
                 x[q] += hs * sum;
             }
@@ -236,26 +242,37 @@ const char *solver_name(int solver)
     return tab ? tab->name : ab ? ab->name : "unknown solver";
 }
 
+/* One case per method, each with a constant tableau, so that each loop is compiled for its own
+ * coefficients (and, inlined per forces mode, for its inputs). Returns -1 for an unknown solver. */
+ENGINE_INLINE int64_t fixed_loop(RightHandSide *f, int mode, int solver, IntegratorMemory *memory, double *x,
+                                 double t0, double hs, int64_t n, int check_each)
+{
+    switch (solver) {
+    case SOLVER_EULER: return runge_kutta_loop(f, mode, &TABLEAU_EULER, x, t0, hs, n, check_each);
+    case SOLVER_MIDPOINT: return runge_kutta_loop(f, mode, &TABLEAU_MIDPOINT, x, t0, hs, n, check_each);
+    case SOLVER_HEUN: return runge_kutta_loop(f, mode, &TABLEAU_HEUN, x, t0, hs, n, check_each);
+    case SOLVER_RK3: return runge_kutta_loop(f, mode, &TABLEAU_RK3, x, t0, hs, n, check_each);
+    case SOLVER_RK4: return runge_kutta_loop(f, mode, &TABLEAU_RK4, x, t0, hs, n, check_each);
+    case SOLVER_NYSTROM5: return runge_kutta_loop(f, mode, &TABLEAU_NYSTROM5, x, t0, hs, n, check_each);
+    case SOLVER_AB2: return adams_bashforth_loop(f, mode, &AB2, memory, x, t0, hs, n, check_each);
+    case SOLVER_AB3: return adams_bashforth_loop(f, mode, &AB3, memory, x, t0, hs, n, check_each);
+    case SOLVER_AB4: return adams_bashforth_loop(f, mode, &AB4, memory, x, t0, hs, n, check_each);
+    case SOLVER_AB5: return adams_bashforth_loop(f, mode, &AB5, memory, x, t0, hs, n, check_each);
+    case SOLVER_AB6: return adams_bashforth_loop(f, mode, &AB6, memory, x, t0, hs, n, check_each);
+    default: return -1;
+    }
+}
+
 int64_t integrate_fixed(RightHandSide *f, int solver, IntegratorMemory *memory, double *x, double t0, double hs,
                         int64_t n, int check_each)
 {
     int64_t done;
-    /* One case per method, each with a constant tableau, so that each loop is compiled for its
-     * own coefficients. */
-    switch (solver) {
-    case SOLVER_EULER: done = runge_kutta_loop(f, &TABLEAU_EULER, x, t0, hs, n, check_each); break;
-    case SOLVER_MIDPOINT: done = runge_kutta_loop(f, &TABLEAU_MIDPOINT, x, t0, hs, n, check_each); break;
-    case SOLVER_HEUN: done = runge_kutta_loop(f, &TABLEAU_HEUN, x, t0, hs, n, check_each); break;
-    case SOLVER_RK3: done = runge_kutta_loop(f, &TABLEAU_RK3, x, t0, hs, n, check_each); break;
-    case SOLVER_RK4: done = runge_kutta_loop(f, &TABLEAU_RK4, x, t0, hs, n, check_each); break;
-    case SOLVER_NYSTROM5: done = runge_kutta_loop(f, &TABLEAU_NYSTROM5, x, t0, hs, n, check_each); break;
-    case SOLVER_AB2: done = adams_bashforth_loop(f, &AB2, memory, x, t0, hs, n, check_each); break;
-    case SOLVER_AB3: done = adams_bashforth_loop(f, &AB3, memory, x, t0, hs, n, check_each); break;
-    case SOLVER_AB4: done = adams_bashforth_loop(f, &AB4, memory, x, t0, hs, n, check_each); break;
-    case SOLVER_AB5: done = adams_bashforth_loop(f, &AB5, memory, x, t0, hs, n, check_each); break;
-    case SOLVER_AB6: done = adams_bashforth_loop(f, &AB6, memory, x, t0, hs, n, check_each); break;
-    default: return 0;
+    switch (forces_mode(f)) {
+    case FORCES_NONE: done = fixed_loop(f, FORCES_NONE, solver, memory, x, t0, hs, n, check_each); break;
+    case FORCES_HELD: done = fixed_loop(f, FORCES_HELD, solver, memory, x, t0, hs, n, check_each); break;
+    default: done = fixed_loop(f, FORCES_VARY, solver, memory, x, t0, hs, n, check_each); break;
     }
+    if (done < 0) return 0;
     memory->n_steps += (uint64_t)done;
     return done;
 }
@@ -264,6 +281,7 @@ double integrate_adaptive(RightHandSide *f, IntegratorMemory *memory, double *x,
                           double h_initial, double tol, int check_each)
 {
     const Evaluator e = evaluator_of(f);
+    const int mode = forces_mode(f);
     const double smallest = 1e-14 * (fabs(t_end) > 1.0 ? fabs(t_end) : 1.0);
     double h = memory->rkf_proposal > 0.0 ? memory->rkf_proposal : h_initial;
     double t = t0;
@@ -276,12 +294,12 @@ double integrate_adaptive(RightHandSide *f, IntegratorMemory *memory, double *x,
         double norm = 0.0, factor;
         int accept;
         if (!have_f0) {
-            evaluate(&e, t, x, f0);
+            evaluate(&e, mode, t, x, f0);
             f->evaluations++;
             have_f0 = 1;
         }
         memcpy(y, x, sizeof y);
-        runge_kutta_step(&e, &TABLEAU_RKF45, t, step, y, f0, err);
+        runge_kutta_step(&e, mode, &TABLEAU_RKF45, t, step, y, f0, err);
         f->evaluations += TABLEAU_RKF45.stages - 1;
         for (i = 0; i < N_STATES; i++) {
             const double scaled = err[i] / (tol * (1.0 + fabs(x[i])));

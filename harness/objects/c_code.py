@@ -152,18 +152,20 @@ def generate_c(derivation: Derivation) -> GeneratedC:
     forces_q = list(derivation.Q)
     forcing_f = list(derivation.f)
     pivots: list[sp.Expr] = []
+    states = set(spec.q) | set(spec.v) | {spec.time}
     if diagonal:
         # M a = b solves entry by entry: the division goes into the expressions, where constant
-        # factors fold into the hoisted constants.
+        # factors fold into the hoisted constants. A pivot that the object file's ranges and
+        # requirements keep positive needs no check.
         for j in range(n):
             inverse = 1 / derivation.M[j, j]
             forcing_f[j] = forcing_f[j] * inverse
             forces_q[j] = forces_q[j] * inverse
-            if not constants.is_constant(prepared(derivation.M[j, j])):
+            if not (constants.is_constant(prepared(derivation.M[j, j]))
+                    or _positive_by_declaration(derivation.M[j, j], spec)):
                 pivots.append(prepared(derivation.M[j, j]))
-    states = set(spec.q) | set(spec.v) | {spec.time}
-    forcing_f = [_tidy(e, states) for e in forcing_f]
-    forces_q = [_tidy(e, states) for e in forces_q]
+    forcing_f = [_tidy(e, states, spec.v) for e in forcing_f]
+    forces_q = [_tidy(e, states, spec.v) for e in forces_q]
     forcing = [prepared(e) for e in forcing_f]
     lines, reduced, replacements = _cse_lines(pivots + mass + forcing, "w")
     body += lines
@@ -193,9 +195,6 @@ def generate_c(derivation: Derivation) -> GeneratedC:
     if any("goto singular" in line for line in body):
         body += ["    return;", "singular:", f"    {{ int i; for (i = 0; i < {2 * n}; i++) dx[i] = NAN; }}"]
     body = _with_locals(state_locals, body)
-    if has_linear:
-        body = ["    if (c->linear) {", "        linear_model_derivatives(&c->lin, c->d, x, u, dx);",
-                "        return;", "    }"] + body
 
     # ---- outputs and their exact time derivatives: the same targets, values one derivative apart
     q, v, t = spec.q, spec.v, spec.time
@@ -265,7 +264,9 @@ def generate_c(derivation: Derivation) -> GeneratedC:
         n_constants=max(1, len(constants.definitions)),
         factor_fields="".join(f"    double {name};\n" for name in factor_constants),
         linear_field="    int linear;\n    LinearModel lin;\n" if has_linear else "",
-        derivatives="\n".join(body), file=spec.path.name)
+        derivatives="\n".join(body), file=spec.path.name,
+        selected=("    if (c->linear) {\n        linear_model_derivatives(&c->lin, c->d, x, u, dx);\n        return;\n    }\n"
+                  if has_linear else "") + "    model_equations(c, t, x, u, dx);")
     source = _SOURCE.format(
         identifier=spec.identifier, file=spec.path.name, prepare="\n".join(prepare), state_ok="\n".join(ok_body),
         explain="\n".join(explain), outputs="\n".join(outputs_body), rates="\n".join(rates_body),
@@ -298,13 +299,38 @@ def _output_function(array: str, targets: list[str], values: list, linear_argume
     return lines
 
 
-def _tidy(expr, states: set[sp.Symbol]):
-    """Cancels common factors of a quotient and gathers the terms of each function of the state,
-    so that parameter factors fold into one hoisted constant (k*sin(phi), not k1*sin(phi) + k2*sin(phi))."""
+def _tidy(expr, states: set[sp.Symbol], velocities: list[sp.Symbol]):
+    """Cancels common factors of a quotient, divides each term of the numerator by the parameter-only
+    factors of the denominator (r w^2 - (D/m) eps, not (m r w^2 - D eps)/m) and gathers the terms of
+    each function of the state, so that parameter factors fold into one hoisted constant
+    (k*sin(phi), not k1*sin(phi) + k2*sin(phi))."""
     numerator, denominator = sp.fraction(sp.cancel(sp.sympify(expr)))
+    by_parameters, by_states = sp.Integer(1), sp.Integer(1)
+    for factor in sp.Mul.make_args(sp.factor(denominator)):
+        if factor.free_symbols & states:
+            by_states *= factor
+        else:
+            by_parameters *= factor
+    numerator = sp.expand(numerator / by_parameters)
     atoms = sorted((a for a in numerator.atoms(sp.Function) if a.free_symbols & states), key=sp.default_sort_key)
-    numerator = sp.collect(sp.expand(numerator), atoms)
-    return numerator / denominator
+    return sp.collect(numerator, velocities + atoms) / by_states
+
+
+def _positive_by_declaration(expr, spec) -> bool:
+    """Whether the object file guarantees expr > 0 wherever its requirements hold: a positive number
+    times parameters with a positive lower bound and required expressions, or their powers."""
+    positive = {spec.symbols[p.name] for p in spec.parameters if p.min is not None and p.min > 0}
+    required = [sp.expand(r) for r in spec.require]
+    coefficient, factors = sp.factor_list(sp.expand(expr))
+    if not (coefficient.is_number and coefficient > 0):
+        return False
+    for factor, multiplicity in factors:
+        if factor in positive or any(sp.expand(factor - r) == 0 for r in required):
+            continue
+        if multiplicity % 2 == 0 and any(sp.expand(factor + r) == 0 for r in required):
+            continue
+        return False
+    return True
 
 
 def _with_locals(declarations: list[str], lines: list[str]) -> list[str]:
@@ -422,11 +448,18 @@ typedef struct {{
     double k[{n_constants}];
 {factor_fields}{linear_field}}} ModelConst;
 
-/* dx = f(t, x, u): x = (q, v), dx = (v, a). u == NULL means every force input is zero. Inlined into
- * the integrators' loops. */
-static inline void model_derivatives(const ModelConst *c, double t, const double *x, const double *u, double *dx)
+/* dx = f(t, x, u) of the object's equations: x = (q, v), dx = (v, a). u == NULL means every force
+ * input is zero. Inlined into the integrators' loops (model = linear never reaches them: its closed
+ * form takes every step). */
+static inline void model_equations(const ModelConst *c, double t, const double *x, const double *u, double *dx)
 {{
 {derivatives}
+}}
+
+/* dx = f(t, x, u) of the model selected by `model`: for Model Exchange and the outputs. */
+static inline void model_derivatives(const ModelConst *c, double t, const double *x, const double *u, double *dx)
+{{
+{selected}
 }}
 
 #endif
