@@ -7,7 +7,7 @@ side by side, interleaved, median of repeats):
   * the FMU through fmpy: the cheapest method and internal step (fewest right-hand-side
     evaluations), stepped by the harness's loop on fmpy's loaded library, and by fmpy's own
     FMU2Slave list API (doStep + getReal per output point);
-  * scipy's solve_ivp DOP853 on a Python right-hand side (harness.equations), loosest rtol = atol;
+  * scipy's solve_ivp DOP853 on a Python right-hand side (harness.objects.thesis.equations), loosest rtol = atol;
   * fmpy's simulate_fmu, Model Exchange with CVode, loosest relative tolerance.
 
 The output interval decides how much of the cost is per-call overhead, so the benchmark runs four:
@@ -30,11 +30,11 @@ from fmpy import extract, read_model_description, simulate_fmu  # noqa: E402
 from fmpy.fmi2 import FMU2Slave  # noqa: E402
 from scipy.integrate import solve_ivp  # noqa: E402
 
-from harness.equations import Pendulum  # noqa: E402
-from harness.fmu_instance import FmuInstance  # noqa: E402
-from harness.fmus import build_dir, build_fmus  # noqa: E402
-from harness.reference import exact_simple_pendulum  # noqa: E402
-from harness.simulation import Recorder, communication_grid  # noqa: E402
+from harness.fmi.fmu_instance import FmuInstance  # noqa: E402
+from harness.fmi.fmus import build_dir, build_fmus  # noqa: E402
+from harness.fmi.simulation import Recorder, communication_grid  # noqa: E402
+from harness.objects.thesis.equations import Pendulum  # noqa: E402
+from harness.objects.thesis.reference import exact_simple_pendulum  # noqa: E402
 
 TARGET, STOP = 1e-6, 10.0
 FIXED_METHODS = ("rk4", "nystrom5", "ab4", "ab5", "ab6")

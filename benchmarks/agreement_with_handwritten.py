@@ -24,9 +24,9 @@ sys.path.insert(0, str(ROOT))
 
 from fmpy import extract, read_model_description  # noqa: E402
 
-from harness.fmu_instance import OK, FmuInstance  # noqa: E402
-from harness.fmus import build_dir, build_fmus  # noqa: E402
-from harness.methods import SOLVERS  # noqa: E402
+from harness.fmi.fmu_instance import OK, FmuInstance  # noqa: E402
+from harness.fmi.fmus import build_dir, build_fmus  # noqa: E402
+from harness.fmi.methods import SOLVERS  # noqa: E402
 
 HANDWRITTEN_COMMIT = "ffbd2d8"
 OUTPUT_STEP = 0.01

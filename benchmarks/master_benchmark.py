@@ -17,9 +17,9 @@ sys.path.insert(0, str(ROOT))
 from fmpy import extract, read_model_description  # noqa: E402
 from fmpy.fmi2 import FMU2Slave  # noqa: E402
 
-from harness.fmus import build_dir, build_fmus  # noqa: E402
-from harness.master import Master, MasterOptions  # noqa: E402
-from harness.system import load_system  # noqa: E402
+from harness.cosim.master import Master, MasterOptions  # noqa: E402
+from harness.cosim.system import load_system  # noqa: E402
+from harness.fmi.fmus import build_dir, build_fmus  # noqa: E402
 
 STEP = 0.001
 SCENE = ROOT / "scenes" / "coupled_pendulums.json"

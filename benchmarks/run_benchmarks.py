@@ -24,9 +24,9 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 
-from harness.fmu_instance import FmuInstance  # noqa: E402
-from harness.fmus import build_dir, build_fmus  # noqa: E402
-from harness.methods import SOLVERS  # noqa: E402
+from harness.fmi.fmu_instance import FmuInstance  # noqa: E402
+from harness.fmi.fmus import build_dir, build_fmus  # noqa: E402
+from harness.fmi.methods import SOLVERS  # noqa: E402
 
 import agreement_with_handwritten  # noqa: E402  (beside this file)
 

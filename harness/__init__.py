@@ -5,7 +5,7 @@
     result.write_csv("simple.csv")
 """
 from harness.errors import HarnessError
-from harness.fmus import FMU_NAMES, locate_fmu
-from harness.simulation import SimulationResult, simulate
+from harness.fmi.fmus import FMU_NAMES, locate_fmu
+from harness.fmi.simulation import SimulationResult, simulate
 
 __all__ = ["FMU_NAMES", "HarnessError", "SimulationResult", "locate_fmu", "simulate"]

@@ -20,8 +20,8 @@ def _parse_assignment(text: str) -> tuple[str, object]:
 
 
 def command_simulate(args: argparse.Namespace) -> int:
-    from harness.fmus import locate_fmu
-    from harness.simulation import simulate
+    from harness.fmi.fmus import locate_fmu
+    from harness.fmi.simulation import simulate
     start_values = dict(_parse_assignment(a) for a in args.set)
     if args.solver:
         start_values["solver"] = args.solver
@@ -33,7 +33,7 @@ def command_simulate(args: argparse.Namespace) -> int:
     result.write_csv(out)
     print(f"wrote {out} ({len(result.values)} rows)")
     if args.plot:
-        from harness.traces import draw_traces
+        from harness.scene.traces import draw_traces
         pairs = [(x, y) for x, y in (("x", "y"), ("x1", "y1"), ("x2", "y2")) if x in result.columns]
         if pairs:
             draw_traces([(result.fmu, result, pairs, (0.0, 0.0))], args.plot)
@@ -53,15 +53,15 @@ def command_derive(args: argparse.Namespace) -> int:
 
 
 def command_demo(args: argparse.Namespace) -> int:
-    from harness.report import run_demo
+    from harness.scene.report import run_demo
     report, index = run_demo(Path(args.out), args.duration)
     print(f"wrote {index}: {'all verdicts pass' if report.passed else 'some verdicts fail'}")
     return 0 if report.passed else 1
 
 
 def command_run(args: argparse.Namespace) -> int:
-    from harness.master import Master, MasterOptions
-    from harness.system import load_system
+    from harness.cosim.master import Master, MasterOptions
+    from harness.cosim.system import load_system
     system = load_system(args.system)
     stop = args.stop if args.stop is not None else system.stop
     step = args.step if args.step is not None else system.step
@@ -96,8 +96,8 @@ def command_run(args: argparse.Namespace) -> int:
 
 
 def command_validate(args: argparse.Namespace) -> int:
-    from harness.fmus import locate_fmu
-    from harness.validation import validate
+    from harness.fmi.fmus import locate_fmu
+    from harness.fmi.validation import validate
     failed = 0
     for name in args.fmu:
         path = locate_fmu(name)
@@ -111,8 +111,8 @@ def command_validate(args: argparse.Namespace) -> int:
 
 
 def command_chart(args: argparse.Namespace) -> int:
-    from harness.fmus import build_fmus
-    from harness.work_precision import PENDULUMS
+    from harness.fmi.fmus import build_fmus
+    from harness.studies.work_precision import PENDULUMS
     objects = args.objects or list(PENDULUMS)
     unknown = sorted(set(objects) - set(PENDULUMS))
     if unknown:
@@ -121,8 +121,8 @@ def command_chart(args: argparse.Namespace) -> int:
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
     if args.kind == "work-precision":
-        from harness.charts import work_precision_chart
-        from harness.work_precision import pareto_front, settings, work_precision, write_csv
+        from harness.studies.charts import work_precision_chart
+        from harness.studies.work_precision import pareto_front, settings, work_precision, write_csv
         points = work_precision(settings(objects, repeats=args.repeats), args.scheduler, args.workers)
         write_csv(points, out / "work-precision.csv")
         written = [out / "work-precision.csv", *work_precision_chart(points, out)]
@@ -131,9 +131,9 @@ def command_chart(args: argparse.Namespace) -> int:
             print(f"{name}: Pareto front (evaluations -> error): "
                   + ", ".join(f"{p.method} {p.rhs_evals} -> {p.error:.1e}" for p in front))
     elif args.kind == "stability":
-        from harness.charts import stability_charts
-        from harness.fmus import build_dir
-        from harness.stability import atlas, cases, method_tables, write_csv
+        from harness.studies.charts import stability_charts
+        from harness.fmi.fmus import build_dir
+        from harness.studies.stability import atlas, cases, method_tables, write_csv
         fmu_dir = build_dir() / "fmus"
         limits = atlas(fmu_dir, full=args.full, scheduler=args.scheduler, workers=args.workers)
         write_csv(limits, out / "stability.csv")
@@ -144,10 +144,10 @@ def command_chart(args: argparse.Namespace) -> int:
               f"{worst.measured_limit / worst.theory_limit - 1:+.2%} ({worst.object}, {worst.method}, "
               f"d = {worst.damping:.3g}/s)")
     elif args.kind == "coupling":
-        from harness.charts import coupling_chart
-        from harness.coupling import coupling_sweep, write_csv
-        from harness.fmus import PROJECT_ROOT
-        from harness.system import load_system
+        from harness.studies.charts import coupling_chart
+        from harness.studies.coupling import coupling_sweep, write_csv
+        from harness.fmi.fmus import PROJECT_ROOT
+        from harness.cosim.system import load_system
         system = load_system(args.system or PROJECT_ROOT / "scenes" / "coupled_pendulums.json")
         points = coupling_sweep(system, stop=args.stop, repeats=args.repeats, scheduler=args.scheduler,
                                 workers=args.workers)
@@ -161,9 +161,9 @@ def command_chart(args: argparse.Namespace) -> int:
 
 
 def command_plan(args: argparse.Namespace) -> int:
-    from harness.fmus import build_fmus
-    from harness.planner import plan_scene, write_plan_csv
-    from harness.system import load_system
+    from harness.fmi.fmus import build_fmus
+    from harness.studies.planner import plan_scene, write_plan_csv
+    from harness.cosim.system import load_system
     build_fmus()
     system = load_system(args.scene)
     tolerance = args.tolerance

@@ -5,8 +5,8 @@ from pathlib import Path
 import pytest
 from fmpy import extract
 
-from harness.fmu_instance import FmuInstance
-from harness.fmus import FMU_NAMES, build_dir, build_fmus
+from harness.fmi.fmu_instance import FmuInstance
+from harness.fmi.fmus import FMU_NAMES, build_dir, build_fmus
 
 PENDULUMS = ("SimplePendulum", "DoublePendulum", "SpringPendulum")
 

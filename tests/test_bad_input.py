@@ -10,8 +10,8 @@ import pytest
 from fmpy import read_model_description
 from fmpy.fmi2 import FMU2Slave
 
-from harness.fmu_instance import ERROR, OK, LogCollector
-from harness.fmus import FMU_NAMES, build_dir
+from harness.fmi.fmu_instance import ERROR, OK, LogCollector
+from harness.fmi.fmus import FMU_NAMES, build_dir
 
 D = ctypes.c_double
 

@@ -11,7 +11,7 @@ from pathlib import Path
 
 import pytest
 
-from harness.fmus import PROJECT_ROOT, build_dir
+from harness.fmi.fmus import PROJECT_ROOT, build_dir
 
 
 def harness(*args: str) -> subprocess.CompletedProcess:

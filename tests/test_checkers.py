@@ -11,7 +11,7 @@ from pathlib import Path
 
 import pytest
 
-from harness.fmus import FMU_NAMES, build_dir
+from harness.fmi.fmus import FMU_NAMES, build_dir
 
 VDMCHECK = "org.into-cps.vdmcheck.fmi2:vdmcheck2:1.1.3:zip:distribution-static"
 
@@ -93,7 +93,7 @@ def fmi_sim_binary() -> str | None:
 def test_fmi_sim_agrees_with_the_harness(fmu_paths, unzipped, tmp_path, name):
     """Each FMU with its default experiment (10 s, 0.01 s); the Spring alone with moving ends."""
     import numpy as np
-    from harness.simulation import simulate
+    from harness.fmi.simulation import simulate
     out = tmp_path / "fmi_sim.csv"
     start = {"a_vx": 0.5, "a_vy": -0.2, "b_x": 1.2, "b_y": 0.3} if name == "Spring" else {}
     settings = [argument for k, v in start.items() for argument in ("--init-values", f"{k}={v!r}")]

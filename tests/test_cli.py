@@ -47,7 +47,7 @@ def test_simulate_writes_csv_and_plot(fmu_paths, tmp_path):
 
 
 def test_run_writes_every_output_of_every_component(fmu_paths, tmp_path):
-    from harness.fmus import PROJECT_ROOT
+    from harness.fmi.fmus import PROJECT_ROOT
     out = tmp_path / "run.csv"
     result = harness("run", str(PROJECT_ROOT / "scenes" / "coupled_pendulums.json"), "--stop", "0.5", "--step", "0.05",
                      "--algorithm", "jacobi", "--extrapolation", "hold", "--out", str(out), "--quiet")

@@ -6,8 +6,8 @@ import threading
 
 import pytest
 
-from harness.fmu_instance import OK, FmuInstance
-from harness.fmus import FMU_NAMES
+from harness.fmi.fmu_instance import OK, FmuInstance
+from harness.fmi.fmus import FMU_NAMES
 
 OUTPUTS = {"SimplePendulum": ("phi", "omega", "x", "E"), "DoublePendulum": ("phi1", "phi2", "x2", "E"),
            "SpringPendulum": ("phi", "eps", "x", "E"), "Spring": ("Fa_x", "Fa_y", "E_pot")}

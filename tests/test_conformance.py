@@ -11,7 +11,7 @@ from pathlib import Path
 
 import pytest
 
-from harness.fmus import FMU_NAMES
+from harness.fmi.fmus import FMU_NAMES
 
 CS = ("instantiated", "initializationMode", "stepComplete", "stepFailed", "terminated")
 ME = ("instantiated", "initializationMode", "eventMode", "continuousTimeMode", "terminated")

@@ -5,8 +5,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from harness.simulation import simulate
-from harness.reference import exact_simple_pendulum, slope
+from harness.fmi.simulation import simulate
+from harness.objects.thesis.reference import exact_simple_pendulum, slope
 
 ORDERS = {"euler": 1, "midpoint": 2, "heun": 2, "rk3": 3, "rk4": 4, "nystrom5": 5,
           "ab2": 2, "ab3": 3, "ab4": 4, "ab5": 5, "ab6": 6}

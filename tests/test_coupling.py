@@ -11,10 +11,10 @@ import numpy as np
 import pytest
 
 from harness.cli import main
-from harness.coupling import CoupledPendulums, read_csv
-from harness.fmus import PROJECT_ROOT
-from harness.reference import slope
-from harness.system import load_system
+from harness.cosim.system import load_system
+from harness.fmi.fmus import PROJECT_ROOT
+from harness.objects.thesis.reference import slope
+from harness.studies.coupling import CoupledPendulums, read_csv
 
 SCENE = PROJECT_ROOT / "scenes" / "coupled_pendulums.json"
 

@@ -13,9 +13,9 @@ import pytest
 from fmpy import simulate_fmu
 from scipy.integrate import solve_ivp
 
-from harness.equations import OUTER_MASS, STATES
-from harness.fmu_instance import DISCARD, ERROR, OK
-from harness.simulation import simulate
+from harness.fmi.fmu_instance import DISCARD, ERROR, OK
+from harness.fmi.simulation import simulate
+from harness.objects.thesis.equations import OUTER_MASS, STATES
 
 PENDULUMS = ("SimplePendulum", "DoublePendulum", "SpringPendulum")
 
@@ -119,7 +119,7 @@ def test_serialized_state_restores_in_another_process(fmu_paths, unzipped, open_
     expected = run_steps(fmu, 0.5, 10)
     script = textwrap.dedent(f"""
         import sys
-        from harness.fmu_instance import FmuInstance
+        from harness.fmi.fmu_instance import FmuInstance
         fmu = FmuInstance({str(fmu_paths['DoublePendulum'])!r}, unzipdir={str(unzipped['DoublePendulum'])!r})
         fmu.initialize()
         fmu.set_state(fmu.deserialize(open({str(tmp_path / 'state.bin')!r}, 'rb').read()))
@@ -279,7 +279,7 @@ def test_too_many_substeps_is_an_error_not_a_hang(open_fmu):
 
 def test_wrong_guid_and_type_at_instantiation(fmu_paths, unzipped):
     from fmpy.fmi2 import FMU2Slave
-    from harness.fmu_instance import LogCollector
+    from harness.fmi.fmu_instance import LogCollector
     log = LogCollector()
     slave = FMU2Slave(guid="{00000000-0000-0000-0000-000000000000}", unzipDirectory=unzipped["SimplePendulum"],
                       modelIdentifier="SimplePendulum", instanceName="wrong")

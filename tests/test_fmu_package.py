@@ -14,9 +14,9 @@ import pytest
 from fmpy import read_model_description
 from fmpy.validation import validate_fmu
 
-from harness.fmus import FMU_NAMES, PROJECT_ROOT
+from harness.fmi.fmus import FMU_NAMES, PROJECT_ROOT
+from harness.fmi.simulation import simulate
 from harness.objects.registry import object_names
-from harness.simulation import simulate
 
 SPEC_DEFAULTS = {
     "SimplePendulum": {"g": 9.81, "d": 0, "anchor_x": 0, "anchor_y": 0, "h": 0.008, "tol": 1e-6, "L": 1, "m": 1,
@@ -111,7 +111,7 @@ def test_prototypes_match_the_standard_headers(tmp_path):
     """The framework compiles against the FMI standard's own headers (shipped with fmpy) too."""
     headers = Path(fmpy.__file__).parent / "c-code"
     generated = PROJECT_ROOT / "build" / "generated" / "SimplePendulum"
-    for source in ("fmi2_functions.c", "stepper.c"):
+    for source in ("fmi2_functions.c", "stepper.c", "instance.c"):
         subprocess.run(["gcc", "-std=c99", "-fsyntax-only", "-Werror=incompatible-pointer-types",
                         "-DUSE_STANDARD_FMI2_HEADERS", f"-I{headers}", f"-I{generated}",
                         f"-I{PROJECT_ROOT / 'fmus' / 'framework'}", f"-I{generated}",
@@ -121,7 +121,8 @@ def test_prototypes_match_the_standard_headers(tmp_path):
 def run_codegen(tmp_path: Path, xml_files: list[Path]) -> subprocess.CompletedProcess:
     return subprocess.run([sys.executable, str(PROJECT_ROOT / "tools" / "fmu_codegen.py"), "--out", str(tmp_path / "gen"),
                            "--models", str(PROJECT_ROOT / "fmus" / "models"),
-                           "--sources", "fmi2_functions.c", "stepper.c", "integrators.c", "linear_model.c", "physics.c",
+                           "--sources", "fmi2_functions.c", "stepper.c", "instance.c", "integrators.c", "linear_model.c",
+                           "physics.c",
                            "--xml", *map(str, xml_files)], capture_output=True, text=True)
 
 

@@ -10,8 +10,8 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from harness.fmu_instance import OK, FmuInstance
-from harness.fmus import FMU_NAMES
+from harness.fmi.fmu_instance import OK, FmuInstance
+from harness.fmi.fmus import FMU_NAMES
 
 D = ctypes.c_double
 values = st.one_of(st.floats(allow_nan=True, allow_infinity=True), st.floats(-10, 10), st.sampled_from([0.0, 1e-9]))

@@ -11,7 +11,7 @@ from fractions import Fraction
 import numpy as np
 import pytest
 
-from harness.fmus import PROJECT_ROOT, build_dir, build_fmus
+from harness.fmi.fmus import PROJECT_ROOT, build_dir, build_fmus
 
 EXPECTED_ORDER = {"euler": 1, "midpoint": 2, "heun": 2, "rk3": 3, "rk4": 4, "nystrom5": 5, "rkf45": 4}
 

@@ -7,11 +7,11 @@ import dataclasses
 import numpy as np
 import pytest
 
-from harness.coupling import CoupledPendulums
-from harness.fmus import PROJECT_ROOT, build_dir
-from harness.master import MasterOptions, run_system
-from harness.system import load_system
-from harness.reference import slope
+from harness.cosim.master import MasterOptions, run_system
+from harness.cosim.system import load_system
+from harness.fmi.fmus import PROJECT_ROOT, build_dir
+from harness.objects.thesis.reference import slope
+from harness.studies.coupling import CoupledPendulums
 
 SCENE = PROJECT_ROOT / "scenes" / "coupled_pendulums.json"
 G, L, M, K, L0, GAP = 9.81, 1.0, 1.0, 10.0, 1.5, 1.5
@@ -19,7 +19,7 @@ T = 3.0
 
 
 def monolithic(t_eval: np.ndarray, c: float = 0.0) -> dict[str, np.ndarray]:
-    """The library's monolithic reference (harness.coupling), spring damping c."""
+    """The library's monolithic reference (harness.studies.coupling), spring damping c."""
     system = load_system(SCENE)
     spring = next(x for x in system.components if x.name == "spring")
     damped = dataclasses.replace(system, components=[dataclasses.replace(spring, start={**spring.start, "c": c})
@@ -142,7 +142,7 @@ def test_bad_master_options_are_refused():
 @pytest.mark.parametrize("algorithm", ["jacobi", "gauss-seidel"])
 @pytest.mark.parametrize("extrapolation", ["hold", "linear"])
 def test_native_loop_is_bit_identical_to_the_python_loop(system, algorithm, extrapolation):
-    from harness.master import Master
+    from harness.cosim.master import Master
     results = []
     for native in (True, False):
         with Master(system, MasterOptions(stop=1.0, step=0.01, algorithm=algorithm,
@@ -154,7 +154,7 @@ def test_native_loop_is_bit_identical_to_the_python_loop(system, algorithm, extr
 
 
 def test_native_loop_reports_a_discard_like_the_python_loop(system):
-    from harness.master import Master
+    from harness.cosim.master import Master
     changes = {"spring": {"k": 4000.0}, "left": {"solver": "euler", "h": 0.05}, "right": {"solver": "euler", "h": 0.05}}
     stiff = dataclasses.replace(system, components=[dataclasses.replace(c, start={**c.start, **changes[c.name]})
                                                     for c in system.components])

@@ -12,7 +12,7 @@ from pathlib import Path
 import pytest
 from fmpy import read_model_description
 
-from harness.fmus import PROJECT_ROOT, build_dir
+from harness.fmi.fmus import PROJECT_ROOT, build_dir
 
 SANITIZED_TESTS = ["tests/test_fmi_behaviour.py", "tests/test_robustness.py", "tests/test_convergence.py",
                    "tests/test_master.py", "tests/test_concurrency.py", "tests/test_physics.py"]

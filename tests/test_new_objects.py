@@ -11,8 +11,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from harness.fmus import PROJECT_ROOT
-from harness.simulation import simulate
+from harness.fmi.fmus import PROJECT_ROOT
+from harness.fmi.simulation import simulate
 
 SCENES = ["cart_pendulum", "chain3", "chain5", "spherical_pendulum", "elastic_double_pendulum", "kapitza_pendulum"]
 

@@ -14,9 +14,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from harness.fmus import build_dir
-from harness.master import MasterOptions, run_system
-from harness.system import load_system
+from harness.cosim.master import MasterOptions, run_system
+from harness.cosim.system import load_system
+from harness.fmi.fmus import build_dir
 
 PEERS = Path(__file__).parent / "peers"
 STEP, STEPS = 0.01, 200
@@ -107,7 +107,7 @@ def test_each_fmu_alone_agrees_with_the_harness(request, fmu_paths, unzipped, tm
         if peer == "ecos" and ctypes.util.find_library("tbb") is None:
             pytest.skip("ecos needs Debian's libtbb12, which is not installed (./run installs it when run as root)")
         rows = run_peer("run_single.py", peer, str(fmu_paths[name]), "0.01", "100", json.dumps(start), *OUTPUTS[name])
-    from harness.simulation import simulate
+    from harness.fmi.simulation import simulate
     ours = simulate(fmu_paths[name], 1.0, 0.01, start_values=start, unzipdir=unzipped[name])
     expected = np.column_stack([ours[n] for n in OUTPUTS[name]])[1:]
     assert rows.shape == expected.shape

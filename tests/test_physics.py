@@ -1,5 +1,5 @@
 """The right-hand sides, positions and energies of all three pendulums against an independent
-SymPy Euler-Lagrange derivation from T and U (harness.lagrange), at random states, parameters and
+SymPy Euler-Lagrange derivation from T and U (harness.objects.thesis.lagrange), at random states, parameters and
 forces, read through Model Exchange."""
 from __future__ import annotations
 
@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 import sympy as sp
 
-from harness.lagrange import MODELS, derived_model, g, random_point
+from harness.objects.thesis.lagrange import MODELS, derived_model, g, random_point
 
 @pytest.mark.parametrize("name", list(MODELS))
 def test_right_hand_side_positions_and_energies_match_lagrange(open_fmu, name):

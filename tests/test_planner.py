@@ -11,11 +11,11 @@ import numpy as np
 import pytest
 
 from harness.cli import main
-from harness.fmus import PROJECT_ROOT
-from harness.planner import plan_scene
-from harness.reference import exact_simple_pendulum
-from harness.stability import linearized_eigenvalues, method_tables, stable_over
-from harness.system import load_system
+from harness.cosim.system import load_system
+from harness.fmi.fmus import PROJECT_ROOT
+from harness.objects.thesis.reference import exact_simple_pendulum
+from harness.studies.planner import plan_scene
+from harness.studies.stability import linearized_eigenvalues, method_tables, stable_over
 
 SCENES = {
     "small swing, long": ({"p": {"fmu": "SimplePendulum", "start": {"phi": 0.05}}}, 20.0, 1e-3),
@@ -72,7 +72,7 @@ def test_no_plan_beyond_a_stability_limit(plans, scene):
     for p in plan:
         if p.model == "linear":
             continue
-        from harness.equations import Pendulum
+        from harness.objects.thesis.equations import Pendulum
         pendulum = Pendulum.from_fmu(system.component(p.object).fmu, system.component(p.object).start)
         assert stable_over(tables[p.method], linearized_eigenvalues(p.kind, pendulum.parameters), p.h, system.stop)
 
@@ -84,7 +84,7 @@ def test_small_swings_take_the_closed_form_and_large_ones_do_not(plans):
 
 def test_the_verification_is_independent(plans):
     """Re-verify the large-swing plan against the exact elliptic solution, outside the planner."""
-    from harness.simulation import simulate
+    from harness.fmi.simulation import simulate
     system, tolerance, (plan,) = plans["large swing"]
     result = simulate(system.component("p").fmu, 10.0, 0.04,
                       start_values={**system.component("p").start, "solver": plan.method, "h": plan.h})

@@ -10,8 +10,8 @@ from pathlib import Path
 
 import pytest
 
-from harness.fmu_instance import ERROR, OK
-from harness.fmus import FMU_NAMES
+from harness.fmi.fmu_instance import ERROR, OK
+from harness.fmi.fmus import FMU_NAMES
 
 API = ["fmi2SetDebugLogging", "fmi2SetupExperiment", "fmi2EnterInitializationMode", "fmi2ExitInitializationMode",
        "fmi2Terminate", "fmi2Reset", "fmi2GetReal", "fmi2GetInteger", "fmi2GetBoolean", "fmi2GetString",

@@ -10,9 +10,9 @@ import numpy as np
 import pytest
 
 from harness.cli import main
-from harness.fmus import build_dir
-from harness.stability import (FIXED_STEP, GROWTH_LIMIT, PERIODS, Case, Probe, growth, method_tables, read_csv,
-                               simple_cases, theory_limit)
+from harness.fmi.fmus import build_dir
+from harness.studies.stability import (FIXED_STEP, GROWTH_LIMIT, PERIODS, Case, Probe, growth, method_tables,
+                                       read_csv, simple_cases, theory_limit)
 
 
 @pytest.fixture(scope="module")

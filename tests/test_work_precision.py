@@ -11,11 +11,11 @@ import pytest
 from scipy.integrate import solve_ivp
 
 from harness.cli import main
-from harness.equations import OUTER_MASS, STATES, Pendulum
-from harness.lagrange import derived_model, random_point
-from harness.reference import exact_simple_pendulum, slope, tight_reference
-from harness.work_precision import (FIXED_STEP, ORDER, PENDULUMS, REFERENCE_SUBSTEPS, Point, pareto_front, read_csv,
-                                    reference_for, settings, work_precision)
+from harness.objects.thesis.equations import OUTER_MASS, STATES, Pendulum
+from harness.objects.thesis.lagrange import derived_model, random_point
+from harness.objects.thesis.reference import exact_simple_pendulum, slope, tight_reference
+from harness.studies.work_precision import (FIXED_STEP, ORDER, PENDULUMS, REFERENCE_SUBSTEPS, Point, pareto_front,
+                                            read_csv, reference_for, settings, work_precision)
 
 ASYMPTOTIC = (3e-13, 2e-2)  # metres: above the rounding floor, below the pre-asymptotic (chaotic) range
 

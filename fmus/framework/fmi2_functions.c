@@ -1,7 +1,7 @@
-/* The FMI 2.0 API, once for every model: state machine, argument checks, logging, variable access,
- * FMU state, Model Exchange and Co-Simulation. Models supply only physics (see framework.h). */
+/* The FMI 2.0 API, once for every model: state machine, argument checks, variable access, FMU state,
+ * Model Exchange and Co-Simulation (the step itself in stepper.c, logging in instance.c). Models
+ * supply only physics (see framework.h). */
 #include <math.h>
-#include <stdarg.h>
 #include <stdio.h>
 #include <string.h>
 
@@ -109,45 +109,6 @@ static void describe_states(unsigned mask, char *text, size_t size)
     if (!text[0]) snprintf(text, size, "none");
 }
 
-/* ---------------------------------------------------------------- logging */
-
-static void log_with(Instance *inst, fmi2Status status, const char *category, const char *fmt, va_list args)
-{
-    char message[1024];
-    char *p;
-    if (!inst || !inst->logger) return;
-    vsnprintf(message, sizeof message, fmt, args);
-    /* Importers differ in whether they treat the message as a printf format: a '%' is never safe. */
-    for (p = message; *p; p++)
-        if (*p == '%') *p = '?';
-    inst->logger(inst->environment, inst->name, status, category, message);
-}
-
-void log_error(Instance *inst, const char *fmt, ...)
-{
-    va_list args;
-    va_start(args, fmt);
-    log_with(inst, fmi2Error, "logStatusError", fmt, args);
-    va_end(args);
-}
-
-void log_discard(Instance *inst, const char *fmt, ...)
-{
-    va_list args;
-    va_start(args, fmt);
-    log_with(inst, fmi2Discard, "logStatusDiscard", fmt, args);
-    va_end(args);
-}
-
-void log_debug(Instance *inst, const char *fmt, ...)
-{
-    va_list args;
-    if (!inst || !inst->logging_on) return;
-    va_start(args, fmt);
-    log_with(inst, fmi2OK, "logAll", fmt, args);
-    va_end(args);
-}
-
 /* Checks the call against the state machine; logs and returns 0 when it is illegal. */
 static int call_allowed(Instance *inst, Function fn)
 {
@@ -208,25 +169,6 @@ static int ensure_constants(Instance *inst, const char *function)
     return 1;
 }
 
-int first_non_finite(const double *values, int n)
-{
-    int i;
-    for (i = 0; i < n; i++)
-        if (!isfinite(values[i])) return i;
-    return -1;
-}
-
-void gather_inputs(const Instance *inst, double *u)
-{
-#if N_INPUTS > 0
-    int i;
-    for (i = 0; i < N_INPUTS; i++) u[i] = inst->s.real[INPUT_VRS[i]];
-#else
-    (void)inst;
-    (void)u;
-#endif
-}
-
 /* Calculated outputs and state derivatives, computed only when someone reads them. */
 static fmi2Status ensure_outputs(Instance *inst, const char *function)
 {
@@ -258,26 +200,6 @@ static fmi2Status ensure_outputs(Instance *inst, const char *function)
     }
     inst->outputs_valid = 1;
     return fmi2OK;
-}
-
-void restart_integrator(Instance *inst)
-{
-    inst->s.integrator.ab_count = 0;
-    inst->s.integrator.ab_head = 0;
-    inst->s.integrator.ab_step = 0.0;
-    inst->s.integrator.rkf_proposal = 0.0;
-}
-
-void advance_inputs_linearly(double *real, const double *du, double H)
-{
-#if N_INPUTS > 0
-    int i;
-    for (i = 0; i < N_INPUTS; i++) real[INPUT_VRS[i]] += H * du[i];
-#else
-    (void)real;
-    (void)du;
-    (void)H;
-#endif
 }
 
 static int input_index(fmi2ValueReference vr)

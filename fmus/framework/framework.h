@@ -85,7 +85,7 @@ typedef struct {
     int logging_on;
 } Instance;
 
-/* Logging: errors and discards are always reported; the rest only with debug logging on. */
+/* instance.c. Logging: errors and discards are always reported; the rest only with debug logging on. */
 void log_error(Instance *inst, const char *fmt, ...);
 void log_discard(Instance *inst, const char *fmt, ...);
 void log_debug(Instance *inst, const char *fmt, ...);
@@ -134,7 +134,7 @@ void model_output_rates(const ModelConst *c, double t, const double *real, const
 /* Advance the inputs over a step of H using their derivatives (and, for positions, velocities). */
 void model_advance_inputs(double *real, const double *du, double H);
 
-/* Default for model_advance_inputs: each input moves with its own first derivative. */
+/* Default for model_advance_inputs (instance.c): each input moves with its own first derivative. */
 void advance_inputs_linearly(double *real, const double *du, double H);
 
 #endif

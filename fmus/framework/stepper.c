@@ -9,6 +9,16 @@
 /* A master asking for more substeps than this in one call has almost surely mixed up units. */
 #define MAX_SUBSTEPS 1000000000.0
 
+/* Forgets the Adams-Bashforth history and the rkf45 step proposal: after a reset, or when solver,
+ * h or tol change. */
+void restart_integrator(Instance *inst)
+{
+    inst->s.integrator.ab_count = 0;
+    inst->s.integrator.ab_head = 0;
+    inst->s.integrator.ab_step = 0.0;
+    inst->s.integrator.rkf_proposal = 0.0;
+}
+
 #if N_STATES == 0
 
 fmi2Status step_to(Instance *inst, double t, double H)

@@ -1,0 +1,1 @@
+"""Objects from their files: read, derive, generate C and model description, build, prove."""

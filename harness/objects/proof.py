@@ -24,8 +24,8 @@ from pathlib import Path
 import numpy as np
 
 from harness.errors import HarnessError
-from harness.fmu_instance import OK, FmuInstance, read_fmi2_description
-from harness.methods import METHODS
+from harness.fmi.fmu_instance import OK, FmuInstance, read_fmi2_description
+from harness.fmi.methods import METHODS
 from harness.objects.numeric_route import NumericLagrangian
 from harness.objects.object_file import FRAMEWORK_PARAMETERS, ObjectFileError, ObjectSpec, read_object_file
 

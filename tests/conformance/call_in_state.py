@@ -10,7 +10,7 @@ import sys
 
 from fmpy.fmi2 import fmi2EventInfo
 
-from harness.fmu_instance import FmuInstance
+from harness.fmi.fmu_instance import FmuInstance
 
 path, unzipdir, kind, state = sys.argv[1:5]
 D, I, P = ctypes.c_double, ctypes.c_int, ctypes.c_void_p

@@ -20,7 +20,7 @@ from pathlib import Path
 from fmpy import read_model_description
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[2]))
-from harness.system import Component, System, load_system  # noqa: E402
+from harness.cosim.system import Component, System, load_system  # noqa: E402
 
 
 class Spec:

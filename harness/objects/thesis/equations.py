@@ -36,7 +36,7 @@ class Pendulum:
 
     @classmethod
     def from_fmu(cls, fmu: str | Path, overrides: dict[str, float] | None = None, lib=math) -> "Pendulum":
-        from harness.fmu_instance import read_fmi2_description
+        from harness.fmi.fmu_instance import read_fmi2_description
         description = read_fmi2_description(Path(fmu))
         name = description.coSimulation.modelIdentifier
         values = {v.name: float(v.start) for v in description.modelVariables

@@ -1,10 +1,10 @@
-"""ctypes binding of harness/native/cosim_core.c, the master's fixed-step loop in C."""
+"""ctypes binding of harness/cosim/native/cosim_core.c, the master's fixed-step loop in C."""
 from __future__ import annotations
 
 import ctypes
 from pathlib import Path
 
-from harness.fmus import build_dir
+from harness.fmi.fmus import build_dir
 
 _double_p = ctypes.POINTER(ctypes.c_double)
 _uint_p = ctypes.POINTER(ctypes.c_uint)

@@ -10,7 +10,7 @@ import matplotlib.ticker
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 
-from harness.work_precision import Point, pareto_front  # noqa: E402
+from harness.studies.work_precision import Point, pareto_front  # noqa: E402
 
 PEER_STYLE = {"scipy-RK45": "s", "scipy-DOP853": "D", "scipy-LSODA": "^", "fmpy-CVode": "v"}
 
@@ -66,7 +66,7 @@ def stability_charts(limits, cases, tables: dict, out: Path) -> list[Path]:
     it (filled) and the predicted ones (hollow); and the limits per case side by side."""
     import numpy as np
 
-    from harness.stability import growth_on_grid, measured_point
+    from harness.studies.stability import growth_on_grid, measured_point
     by_key = {(c.object, round(c.damping, 12), c.release): c for c in cases}
     methods = list(dict.fromkeys(limit.method for limit in limits))
     columns = 4

@@ -13,8 +13,8 @@ from pathlib import Path
 import numpy as np
 
 from harness.errors import HarnessError
-from harness.fmu_instance import DISCARD, ERROR, STATUS_NAMES, FmuInstance
-from harness.results import TimeTable
+from harness.fmi.fmu_instance import DISCARD, ERROR, STATUS_NAMES, FmuInstance
+from harness.fmi.results import TimeTable
 
 
 @dataclass

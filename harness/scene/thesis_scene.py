@@ -6,11 +6,11 @@ from pathlib import Path
 
 import numpy as np
 
+from harness.cosim.system import System, load_system
 from harness.errors import HarnessError
-from harness.fmus import PROJECT_ROOT
-from harness.simulation import SimulationResult, simulate
-from harness.system import System, load_system
-from harness.traces import draw_traces
+from harness.fmi.fmus import PROJECT_ROOT
+from harness.fmi.simulation import SimulationResult, simulate
+from harness.scene.traces import draw_traces
 
 THESIS_SCENE_FILE = PROJECT_ROOT / "scenes" / "thesis_scene.json"
 

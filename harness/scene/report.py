@@ -12,7 +12,7 @@ import time
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from harness.fmus import FMU_NAMES, PROJECT_ROOT, build_dir, build_fmus, locate_fmu
+from harness.fmi.fmus import FMU_NAMES, PROJECT_ROOT, build_dir, build_fmus, locate_fmu
 
 
 @dataclass
@@ -44,7 +44,7 @@ def _image(name: str, alt: str) -> str:
 
 
 def thesis_section(out: Path, duration: float | None) -> Section:
-    from harness.thesis_scene import load_thesis_scene, run_thesis_scene
+    from harness.scene.thesis_scene import load_thesis_scene, run_thesis_scene
     system = load_thesis_scene()
     results = run_thesis_scene(out, duration)
     rows, ok = [], True
@@ -64,10 +64,10 @@ def thesis_section(out: Path, duration: float | None) -> Section:
 
 
 def coupled_section(out: Path) -> Section:
-    from harness.coupling import CoupledPendulums, coupling_error
-    from harness.master import MasterOptions, run_system
-    from harness.system import load_system
-    from harness.traces import draw_traces
+    from harness.studies.coupling import CoupledPendulums, coupling_error
+    from harness.cosim.master import MasterOptions, run_system
+    from harness.cosim.system import load_system
+    from harness.scene.traces import draw_traces
     system = load_system(PROJECT_ROOT / "scenes" / "coupled_pendulums.json")
     rows, ok = [], True
     physics = CoupledPendulums.from_system(system)
@@ -90,8 +90,8 @@ def coupled_section(out: Path) -> Section:
 
 
 def plan_section(out: Path) -> Section:
-    from harness.planner import plan_scene, write_plan_csv
-    from harness.thesis_scene import load_thesis_scene
+    from harness.studies.planner import plan_scene, write_plan_csv
+    from harness.scene.thesis_scene import load_thesis_scene
     system = load_thesis_scene()
     plans = plan_scene(system)
     write_plan_csv(plans, out / "plan.csv")
@@ -110,8 +110,8 @@ def plan_section(out: Path) -> Section:
 
 
 def validation_section() -> Section:
-    from harness.sweep import run_sweep
-    from harness.validation import validate
+    from harness.studies.sweep import run_sweep
+    from harness.fmi.validation import validate
     checks = run_sweep(validate, [locate_fmu(name) for name in FMU_NAMES])
     rows = [[c.fmu, c.name, "PASS" if c.passed else "FAIL", c.detail] for group in checks for c in group]
     failed = sum(row[2] == "FAIL" for row in rows)
@@ -121,11 +121,11 @@ def validation_section() -> Section:
 
 
 def charts_section(out: Path) -> Section:
-    from harness.charts import stability_charts, work_precision_chart
-    from harness.stability import atlas, cases, method_tables
-    from harness.stability import write_csv as write_limits
-    from harness.work_precision import PENDULUMS, pareto_front, settings, work_precision
-    from harness.work_precision import write_csv as write_points
+    from harness.studies.charts import stability_charts, work_precision_chart
+    from harness.studies.stability import atlas, cases, method_tables
+    from harness.studies.stability import write_csv as write_limits
+    from harness.studies.work_precision import PENDULUMS, pareto_front, settings, work_precision
+    from harness.studies.work_precision import write_csv as write_points
     points = work_precision(settings(repeats=1, quick=True))
     write_points(points, out / "work-precision.csv")
     work_precision_chart(points, out)

@@ -17,13 +17,13 @@ from pathlib import Path
 
 import numpy as np
 
-from harness.equations import OUTER_MASS, Pendulum
-from harness.fmu_instance import FmuInstance
-from harness.methods import FIXED_STEP, ORDER
-from harness.reference import Reference, tight_reference
-from harness.simulation import Recorder, communication_grid
-from harness.records import columns_of, read_records, write_records
-from harness.sweep import run_sweep
+from harness.fmi.fmu_instance import FmuInstance
+from harness.fmi.methods import FIXED_STEP, ORDER
+from harness.fmi.simulation import Recorder, communication_grid
+from harness.objects.thesis.equations import OUTER_MASS, Pendulum
+from harness.objects.thesis.reference import Reference, tight_reference
+from harness.studies.records import columns_of, read_records, write_records
+from harness.studies.sweep import run_sweep
 
 STOP, STEP = 10.0, 0.01
 PENDULUMS = ("SimplePendulum", "DoublePendulum", "SpringPendulum")
@@ -63,7 +63,7 @@ class Task:
 
 def settings(objects=PENDULUMS, repeats: int = 3, fmu_dir: Path | None = None, quick: bool = False) -> list[Task]:
     """Every point of the chart; quick: every other step and tolerance (a chart in a few seconds)."""
-    from harness.fmus import build_dir
+    from harness.fmi.fmus import build_dir
     folder = Path(fmu_dir) if fmu_dir else build_dir() / "fmus"
     nan = math.nan
     thin = (lambda values: values[::2]) if quick else (lambda values: values)  # noqa: E731
@@ -162,7 +162,7 @@ def compute(job: tuple[Task, Reference]) -> Point:
 
 
 def work_precision(tasks: list[Task], scheduler: str | None = None, workers: int | None = None) -> list[Point]:
-    """All points, computed in parallel (see `harness.sweep`); the references first, once per FMU."""
+    """All points, computed in parallel (see `harness.studies.sweep`); the references first, once per FMU."""
     fmus = sorted({task.fmu for task in tasks})
     references = dict(zip(fmus, run_sweep(reference_for, fmus, scheduler, workers)))
     return run_sweep(compute, [(task, references[task.fmu]) for task in tasks], scheduler, workers)

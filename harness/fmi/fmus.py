@@ -8,11 +8,10 @@ import sys
 from pathlib import Path
 
 from harness.errors import HarnessError
-from harness.objects.registry import handwritten_names, object_names
+from harness.objects.registry import PROJECT_ROOT, handwritten_names, object_names
 
 # Every object file in modelDescription/ and the hand-written models beside them.
 FMU_NAMES = object_names() + handwritten_names()
-PROJECT_ROOT = Path(__file__).resolve().parent.parent
 
 
 def build_dir() -> Path:

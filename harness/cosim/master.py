@@ -21,11 +21,11 @@ from typing import Callable
 
 import numpy as np
 
+from harness.cosim.system import System
 from harness.errors import HarnessError
-from harness.fmu_instance import DISCARD, ERROR, OK, STATUS_NAMES, FmuInstance
-from harness.results import TimeTable
-from harness.simulation import communication_grid
-from harness.system import System
+from harness.fmi.fmu_instance import DISCARD, ERROR, OK, STATUS_NAMES, FmuInstance
+from harness.fmi.results import TimeTable
+from harness.fmi.simulation import communication_grid
 
 ALGORITHMS = ("jacobi", "gauss-seidel")
 EXTRAPOLATIONS = ("hold", "linear")
@@ -462,7 +462,7 @@ class Master:
     def _native_runner(self, table: np.ndarray, energy: np.ndarray):
         """The C loop over the same buffers and fmi2 functions, run in chunks so that progress is shown
         and rows reach the caller as they come; None when the core is not built."""
-        from harness.native_core import CoreUnit, load_core
+        from harness.cosim.native_core import CoreUnit, load_core
         core = load_core()
         if core is None:
             return None

@@ -1,4 +1,4 @@
-"""Planning coupled objects (see `harness.planner`): two SimplePendulums joined by a Spring, stepped by
+"""Planning coupled objects (see `harness.studies.planner`): two SimplePendulums joined by a Spring, stepped by
 the Gauss-Seidel master with linear extrapolation. One method and internal step for the pendulums
 and a communication step H are chosen together; the prediction doubles H and h together (the
 coupling is second order, the method order p: error ~ D 2^q / (2^q - 1), q = min(2, p)), and the
@@ -10,13 +10,13 @@ from dataclasses import replace
 
 import numpy as np
 
-from harness.coupling import CoupledPendulums
+from harness.cosim.master import MasterOptions, run_system
+from harness.cosim.system import System
 from harness.errors import HarnessError
-from harness.master import MasterOptions, run_system
-from harness.methods import ORDER
-from harness.planner import DEFAULT, SAFETY, ObjectPlan, largest_distance, step_doubling
-from harness.stability import linearized_eigenvalues, method_tables, stable_over
-from harness.system import System
+from harness.fmi.methods import ORDER
+from harness.studies.coupling import CoupledPendulums
+from harness.studies.plans import DEFAULT, SAFETY, ObjectPlan, largest_distance, step_doubling
+from harness.studies.stability import linearized_eigenvalues, method_tables, stable_over
 
 COMMUNICATION_DIVISORS = (1, 2, 4, 8, 16)
 INTERNAL_DIVISORS = (1, 2, 4, 8, 16, 32)

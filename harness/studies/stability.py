@@ -29,9 +29,9 @@ from pathlib import Path
 
 import numpy as np
 
-from harness.records import read_records, write_records
-from harness.methods import FIXED_STEP
-from harness.sweep import run_sweep
+from harness.fmi.methods import FIXED_STEP
+from harness.studies.records import read_records, write_records
+from harness.studies.sweep import run_sweep
 
 PERIODS = 100
 GROWTH_LIMIT = 1.5
@@ -44,7 +44,7 @@ FULL_DAMPING_RATIOS = (0.0, 0.05, 0.1, 0.175, 0.25, 0.375, 0.5, 0.625, 0.75, 0.8
 def method_tables(program: str | None = None) -> dict:
     """The Butcher tableaux and Adams-Bashforth coefficients as the FMUs hold them (printed by the
     build's `integrator_tables`)."""
-    from harness.fmus import build_dir, build_fmus
+    from harness.fmi.fmus import build_dir, build_fmus
     if program is None:
         build_fmus()
         program = str(build_dir() / "bin" / "integrator_tables")
@@ -109,7 +109,7 @@ def theory_limit(table: dict, case: Case) -> float:
 
 
 def _parameters(fmu: Path) -> dict[str, float]:
-    from harness.equations import Pendulum
+    from harness.objects.thesis.equations import Pendulum
     return Pendulum.from_fmu(fmu).parameters
 
 
@@ -184,7 +184,7 @@ class Probe:
     """One FMU instance that answers 'is this h*omega stable?' for one case and method."""
 
     def __init__(self, fmu: str, case: Case, method: str):
-        from harness.fmu_instance import FmuInstance
+        from harness.fmi.fmu_instance import FmuInstance
         self.instance = FmuInstance(fmu, name=f"{case.object}-{method}")
         self.case, self.method = case, method
         self.runs = 0
@@ -193,7 +193,7 @@ class Probe:
         self.instance.call("fmi2Reset")
 
     def stable(self, n: int) -> bool:
-        from harness.fmu_instance import OK
+        from harness.fmi.fmu_instance import OK
         self.runs += 1
         case, instance = self.case, self.instance
         instance.call("fmi2Reset")

@@ -27,36 +27,19 @@ from pathlib import Path
 
 import numpy as np
 
-from harness.equations import Pendulum
+from harness.cosim.system import Component, System
 from harness.errors import HarnessError
-from harness.fmu_instance import FmuInstance, read_fmi2_description
-from harness.methods import ORDER
-from harness.reference import tight_reference
-from harness.simulation import Recorder, communication_grid
-from harness.stability import linearized_eigenvalues, method_tables, stable_over
-from harness.sweep import run_sweep
-from harness.system import Component, System
+from harness.fmi.fmu_instance import FmuInstance, read_fmi2_description
+from harness.fmi.methods import ORDER
+from harness.fmi.simulation import Recorder, communication_grid
+from harness.objects.thesis.equations import Pendulum
+from harness.objects.thesis.reference import tight_reference
+from harness.studies.coupled_plan import plan_coupled
+from harness.studies.plans import DEFAULT, SAFETY, ObjectPlan, largest_distance, step_doubling
+from harness.studies.stability import linearized_eigenvalues, method_tables, stable_over
+from harness.studies.sweep import run_sweep
 
 SUBSTEPS = (1, 2, 3, 4, 5, 6, 8, 10, 12, 16, 20, 25, 32, 40, 50, 64, 80, 100, 128, 160, 200, 256, 320, 400)
-DEFAULT = ("rk4", 0.008)
-SAFETY = 0.5
-
-
-@dataclass
-class ObjectPlan:
-    object: str
-    kind: str  # the FMU's model identifier
-    model: str  # "nonlinear", or "linear" (SimplePendulum's closed form)
-    method: str  # "closed form" for the linear model
-    h: float  # internal step [s] (the frame interval for the closed form)
-    predicted_error: float  # metres
-    verified_error: float  # metres, against the tight reference
-    cost: int  # evaluations over the scene (right-hand side, or closed form)
-    default_error: float  # rk4, h = 0.008, verified the same way
-    default_cost: int
-    how: str  # how the error was predicted
-    tolerance: float
-    communication_step: float = math.nan  # coupled objects only
 
 
 @dataclass
@@ -100,11 +83,6 @@ class ObjectRunner:
         self.instance.free()
 
 
-def largest_distance(a: np.ndarray, b: np.ndarray) -> float:
-    d = np.hypot(*(a - b).transpose(2, 0, 1))
-    return float(np.max(d)) if np.all(np.isfinite(d)) else math.inf
-
-
 def reference_positions(component: Component, kind: str, duration: float, frame: float,
                         columns: list[tuple[str, str]], tolerance: float) -> tuple[np.ndarray, float]:
     """The tight reference's visible points (frames, points, 2) and its estimated error."""
@@ -138,24 +116,6 @@ def _closed_form_positions(pendulum: Pendulum, times: np.ndarray, columns) -> np
     states = np.column_stack([phi, np.zeros_like(phi)])
     points = pendulum.points(states)
     return np.stack([points[c] for c in columns], axis=1)
-
-
-def step_doubling(run, order: int, tolerance: float) -> float | None:
-    """Predicted error of run(1) from run(1), run(1/2) and, unless the difference is already below a
-    hundredth of the tolerance, run(1/4) to check the order (see the module text). `run(scale)`
-    gives the positions with every step scaled; None: a run failed or the order did not show."""
-    coarse = run(1.0)
-    if not np.all(np.isfinite(coarse)):
-        return None
-    half = run(0.5)
-    first = largest_distance(coarse, half)
-    if not math.isfinite(first):
-        return None
-    if first > tolerance / 100:
-        second = largest_distance(half, run(0.25))
-        if not (second > 0 and 2 ** order / 2.5 <= first / second <= 2 ** order * 2.5):
-            return None
-    return first * 2 ** order / (2 ** order - 1)
 
 
 def _predict(runner: ObjectRunner, method: str, h: float, tolerance: float) -> tuple[float, int, str] | None:
@@ -236,7 +196,6 @@ def plan_scene(system: System, tolerance: float | None = None, duration: float |
     if duration is None or frame is None:
         raise HarnessError(f"{system.name}: the scene needs \"stop\" and a frame rate or \"step\"")
     if system.connections:
-        from harness.coupled_plan import plan_coupled
         return plan_coupled(system, tolerance, duration, frame, scheduler, workers)
     for component in system.components:
         if read_fmi2_description(component.fmu).coSimulation.modelIdentifier not in ("SimplePendulum",
@@ -249,12 +208,12 @@ def plan_scene(system: System, tolerance: float | None = None, duration: float |
 
 
 def _columns(system: System, component: Component) -> list[tuple[str, str]]:
-    from harness.equations import OUTER_MASS
+    from harness.objects.thesis.equations import OUTER_MASS
     kind = read_fmi2_description(component.fmu).coSimulation.modelIdentifier
     return [tuple(pair) for pair in system.traces.get(component.name, [OUTER_MASS[kind]])]
 
 
 def write_plan_csv(plans: list[ObjectPlan], path: Path) -> None:
-    from harness.records import write_records
+    from harness.studies.records import write_records
     write_records(plans, path, ["object", "kind", "model", "method", "h", "communication_step", "predicted_error",
                                 "verified_error", "cost", "default_error", "default_cost", "how"])

@@ -18,12 +18,12 @@ from pathlib import Path
 
 import numpy as np
 
+from harness.cosim.master import Master, MasterOptions
+from harness.cosim.system import System
 from harness.errors import HarnessError
-from harness.master import Master, MasterOptions
-from harness.simulation import communication_grid
-from harness.system import System
-from harness.records import columns_of, read_records, write_records
-from harness.sweep import run_sweep
+from harness.fmi.simulation import communication_grid
+from harness.studies.records import columns_of, read_records, write_records
+from harness.studies.sweep import run_sweep
 
 CONFIGURATIONS = (("jacobi", "hold", None), ("jacobi", "linear", None), ("gauss-seidel", "hold", None),
                   ("gauss-seidel", "linear", None), ("jacobi", "linear", 1e-10), ("gauss-seidel", "linear", 1e-10))
@@ -56,7 +56,7 @@ class CoupledPendulums:
 
     @classmethod
     def from_system(cls, system: System) -> "CoupledPendulums":
-        from harness.fmu_instance import read_fmi2_description
+        from harness.fmi.fmu_instance import read_fmi2_description
 
         def values(component) -> dict:
             description = read_fmi2_description(component.fmu)

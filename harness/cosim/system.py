@@ -30,7 +30,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from harness.errors import HarnessError
-from harness.fmus import FMU_NAMES, locate_fmu
+from harness.fmi.fmus import FMU_NAMES, locate_fmu
 
 
 @dataclass

@@ -1,7 +1,7 @@
 """validate: fmpy's model-description validation and quick runtime conformance checks for any FMU;
 for an FMU made from an object file the object's proof (harness.objects.proof: numeric route,
 orders, energy, tolerance, Model Exchange with CVode); for the three thesis pendulums also the
-hand-written derivation (harness.lagrange) and the exact elliptic solution."""
+hand-written derivation (harness.objects.thesis.lagrange) and the exact elliptic solution."""
 from __future__ import annotations
 
 import ctypes
@@ -12,9 +12,9 @@ from pathlib import Path
 import numpy as np
 
 from harness.errors import HarnessError
-from harness.fmu_instance import ERROR, OK, FmuInstance, read_fmi2_description
+from harness.fmi.fmu_instance import ERROR, OK, FmuInstance, read_fmi2_description
 from harness.objects.proof import object_file_in, prove
-from harness.reference import exact_simple_pendulum, slope
+from harness.objects.thesis.reference import exact_simple_pendulum, slope
 
 PENDULUMS = ("SimplePendulum", "DoublePendulum", "SpringPendulum")
 
@@ -99,7 +99,7 @@ def _runtime_checks(path: Path) -> list[Check]:
 
 
 def _physics_checks(path: Path, name: str) -> list[Check]:
-    from harness.lagrange import derived_model, random_point
+    from harness.objects.thesis.lagrange import derived_model, random_point
     checks = []
     names, reference, positions, q, qd = derived_model(name)
     rng = np.random.default_rng(7)

@@ -2,7 +2,7 @@
  * step the FMUs (Jacobi or Gauss-Seidel, inputs held or extrapolated linearly) and record a row.
  * Python prepares everything (instances, buffers, routes; the fmi2 function pointers are the ones
  * fmpy loaded) and keeps everything else: initialization, iteration, step doubling, rollback,
- * messages. Semantics are those of harness/master.py, which the tests compare against. */
+ * messages. Semantics are those of harness/cosim/master.py, which the tests compare against. */
 #include <stddef.h>
 
 typedef int (*SetReal)(void *, const unsigned *, size_t, const double *);

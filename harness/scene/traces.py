@@ -8,7 +8,7 @@ import matplotlib
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402  (the backend must be chosen first)
 
-from harness.simulation import SimulationResult  # noqa: E402
+from harness.fmi.simulation import SimulationResult  # noqa: E402
 
 
 def draw_traces(panels: list[tuple[str, SimulationResult, list[tuple[str, str]], tuple[float, float]]],
