@@ -112,11 +112,13 @@ def command_validate(args: argparse.Namespace) -> int:
 
 def command_chart(args: argparse.Namespace) -> int:
     from harness.fmi.fmus import build_fmus
+    from harness.objects.registry import object_names
     from harness.studies.work_precision import PENDULUMS
-    objects = args.objects or list(PENDULUMS)
-    unknown = sorted(set(objects) - set(PENDULUMS))
+    known = list(PENDULUMS) if args.kind == "work-precision" else list(object_names())
+    objects = args.objects or known
+    unknown = sorted(set(objects) - set(known))
     if unknown:
-        raise HarnessError(f"--objects: {', '.join(unknown)} is not one of {', '.join(PENDULUMS)}")
+        raise HarnessError(f"--objects: {', '.join(unknown)} is not one of {', '.join(known)}")
     build_fmus()
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
@@ -135,9 +137,10 @@ def command_chart(args: argparse.Namespace) -> int:
         from harness.fmi.fmus import build_dir
         from harness.studies.stability import atlas, cases, method_tables, write_csv
         fmu_dir = build_dir() / "fmus"
-        limits = atlas(fmu_dir, full=args.full, scheduler=args.scheduler, workers=args.workers)
+        limits = atlas(fmu_dir, full=args.full, scheduler=args.scheduler, workers=args.workers, objects=objects)
         write_csv(limits, out / "stability.csv")
-        written = [out / "stability.csv", *stability_charts(limits, cases(fmu_dir, args.full), method_tables(), out)]
+        written = [out / "stability.csv",
+                   *stability_charts(limits, cases(fmu_dir, args.full, objects=objects), method_tables(), out)]
         linear = [x for x in limits if x.theory_limit == x.theory_limit]
         worst = max(linear, key=lambda x: abs(x.measured_limit / x.theory_limit - 1))
         print(f"{len(limits)} limits measured; largest deviation from the prediction in the linear cases: "
@@ -235,7 +238,8 @@ def build_parser() -> argparse.ArgumentParser:
     p = sub.add_parser("chart", help="sweeps and their charts: work-precision, stability, coupling")
     p.add_argument("kind", choices=["work-precision", "stability", "coupling"], help="which sweep")
     p.add_argument("--out", default="charts", help="output folder for the CSV and the PNG/SVG charts")
-    p.add_argument("--objects", nargs="+", metavar="NAME", help="pendulums to include (default: all three)")
+    p.add_argument("--objects", nargs="+", metavar="NAME", help="objects to include (default: work-precision the three thesis pendulums, "
+                   "stability every object with a linear model)")
     p.add_argument("--repeats", type=int, default=3, help="timed repeats per point; the median is kept (default 3)")
     p.add_argument("--system", help="coupling: the system (default scenes/coupled_pendulums.json)")
     p.add_argument("--stop", type=float, help="coupling: simulated time [s] (default: the system's)")

@@ -11,8 +11,10 @@ import pytest
 
 from harness.cli import main
 from harness.fmi.fmus import build_dir
-from harness.studies.stability import (FIXED_STEP, GROWTH_LIMIT, PERIODS, Case, Probe, growth, method_tables,
-                                       read_csv, simple_cases, theory_limit)
+from harness.studies.stability import (DAMPING_RATIOS, FIXED_STEP, GROWTH_LIMIT, PERIODS, Case, Probe, growth,
+                                       linearized_eigenvalues, method_tables, read_csv, simple_cases, theory_limit)
+
+MODAL_OBJECTS = ("DoublePendulum", "SpringPendulum", "CartPendulum", "Chain3", "Chain5", "ElasticDoublePendulum")
 
 
 @pytest.fixture(scope="module")
@@ -33,13 +35,16 @@ def test_the_files_and_the_columns(atlas):
     assert ("SimplePendulum", 0.0, 0.01) in cases and ("SimplePendulum", 0.0, 3.0) in cases
     omega0 = math.sqrt(9.81)
     assert any(x.object == "SimplePendulum" and x.damping == pytest.approx(20 * omega0) for x in limits)
-    for name in ("DoublePendulum", "SpringPendulum"):
+    # Every object with a stable, regular rest state; not the spherical pendulum (its mass matrix is
+    # singular at rest) nor Kapitza's (driven).
+    for name in MODAL_OBJECTS:
         assert {x.method for x in limits if x.object == name} == set(FIXED_STEP)
+    assert not {x.object for x in limits} & {"SphericalPendulum", "KapitzaPendulum"}
 
 
 def test_measured_limits_agree_with_the_prediction_in_the_linear_cases(atlas):
     linear = [x for x in atlas[1] if x.release < 1]
-    assert len(linear) == 10 * len(FIXED_STEP)
+    assert len(linear) == (len(DAMPING_RATIOS) + len(MODAL_OBJECTS)) * len(FIXED_STEP)
     for x in linear:
         assert x.measured_limit == pytest.approx(x.theory_limit, rel=0.05), (x.object, x.method, x.damping)
 
@@ -57,6 +62,35 @@ def test_multi_body_limits_are_the_simple_pendulums_on_their_fastest_mode(atlas)
     for x in atlas[1]:
         if x.object != "SimplePendulum":
             assert x.theory_limit == pytest.approx(undamped[x.method].theory_limit, rel=1e-9)
+
+
+def hand_derived_squares(kind: str, p: dict[str, float]) -> list[float]:
+    """omega^2 of the thesis pendulums about rest, linearized by hand (not from the object files)."""
+    if kind == "SimplePendulum":
+        return [p["g"] / p["L"]]
+    if kind == "SpringPendulum":  # hanging at rest the swing and the spring decouple
+        stretch = p["m"] * p["g"] / p["D"]
+        return [p["g"] / (p["l0"] + stretch), p["D"] / p["m"]]
+    mass = np.array([[p["m1"] * p["s1"] ** 2 + p["J1"] + p["m2"] * p["l1"] ** 2, p["m2"] * p["l1"] * p["s2"]],
+                     [p["m2"] * p["l1"] * p["s2"], p["m2"] * p["s2"] ** 2 + p["J2"]]])
+    stiffness = np.diag([(p["m1"] * p["s1"] + p["m2"] * p["l1"]) * p["g"], p["m2"] * p["s2"] * p["g"]])
+    return sorted(np.linalg.eigvals(np.linalg.solve(mass, stiffness)).real)
+
+
+@pytest.mark.parametrize("kind", ["SimplePendulum", "DoublePendulum", "SpringPendulum"])
+def test_normal_modes_from_the_energies_match_the_hand_linearization(kind):
+    rng = np.random.default_rng(3)
+    names = {"SimplePendulum": ("g", "L"), "SpringPendulum": ("g", "m", "D", "l0"),
+             "DoublePendulum": ("g", "m1", "m2", "J1", "J2", "s1", "s2", "l1")}[kind]
+    for _ in range(5):
+        p = {name: rng.uniform(0.3, 3.0) for name in names}
+        d = rng.uniform(0.0, 0.5)
+        def order(z: complex) -> tuple:
+            return round(abs(z), 9), z.imag
+        got = sorted(linearized_eigenvalues(kind, {**p, "d": d}), key=order)
+        expected = sorted([(-d + s * complex(d * d - 4 * w2) ** 0.5) / 2 for w2 in hand_derived_squares(kind, p)
+                           for s in (1, -1)], key=order)
+        assert np.allclose(got, expected, rtol=1e-12), (got, expected)
 
 
 # The predictions, checked independently of the FMUs.

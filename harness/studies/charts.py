@@ -72,7 +72,8 @@ def stability_charts(limits, cases, tables: dict, out: Path) -> list[Path]:
     columns = 4
     rows = math.ceil(len(methods) / columns)
     figure, axes = plt.subplots(rows, columns, figsize=(4.2 * columns, 4 * rows), squeeze=False)
-    markers = {"SimplePendulum": "o", "DoublePendulum": "s", "SpringPendulum": "D"}
+    shapes = "osD^v<>ph*"  # one marker shape per object, in the order the cases come
+    markers = {name: shapes[k % len(shapes)] for k, name in enumerate(dict.fromkeys(c.object for c in cases))}
     for ax, method in zip(axes.flat, methods):
         mine = [(limit, by_key[(limit.object, round(limit.damping, 12), limit.release)]) for limit in limits
                 if limit.method == method]

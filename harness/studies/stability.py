@@ -15,8 +15,9 @@ Cases (`release` is the start amplitude, rad or m):
   * SimplePendulum from rest at 0.01 rad, damping d = zeta * 2 * omega0 for a set of damping ratios
     (0: the imaginary axis; d = 20 omega0: the real axis; between: rays into the left half-plane);
   * SimplePendulum from rest at 3 rad, undamped: nonlinear, no linear prediction;
-  * DoublePendulum and SpringPendulum released at rest in their fastest linearized normal mode
-    (largest coordinate 0.01), omega = that mode's frequency.
+  * every other object with a linear model (harness.objects.modes: normal modes from its energies)
+    released at rest in its fastest mode (largest coordinate 0.01), omega = that mode's frequency;
+    objects without one (driven, or singular at rest) have no case.
 """
 from __future__ import annotations
 
@@ -30,6 +31,11 @@ from pathlib import Path
 import numpy as np
 
 from harness.fmi.methods import FIXED_STEP
+from harness.objects.derivation import derive
+from harness.objects.modes import normal_modes
+from harness.objects.object_file import read_object_file
+from harness.objects.proof import object_file_in
+from harness.objects.registry import object_file, object_names
 from harness.studies.records import read_records, write_records
 from harness.studies.sweep import run_sweep
 
@@ -113,23 +119,6 @@ def _parameters(fmu: Path) -> dict[str, float]:
     return Pendulum.from_fmu(fmu).parameters
 
 
-def double_modes(p: dict[str, float]) -> tuple[np.ndarray, np.ndarray]:
-    """Squared angular frequencies and mode shapes (columns) of the double pendulum hanging at rest:
-    K v = omega^2 M v."""
-    mass = np.array([[p["m1"] * p["s1"] ** 2 + p["J1"] + p["m2"] * p["l1"] ** 2, p["m2"] * p["l1"] * p["s2"]],
-                     [p["m2"] * p["l1"] * p["s2"], p["m2"] * p["s2"] ** 2 + p["J2"]]])
-    stiffness = np.diag([(p["m1"] * p["s1"] + p["m2"] * p["l1"]) * p["g"], p["m2"] * p["s2"] * p["g"]])
-    squares, shapes = np.linalg.eig(np.linalg.solve(mass, stiffness))
-    return squares.real, shapes.real
-
-
-def spring_modes(p: dict[str, float]) -> tuple[float, float, float]:
-    """(static stretch, spring frequency, swing frequency) of the spring pendulum hanging at rest,
-    where the two modes decouple."""
-    stretch = p["m"] * p["g"] / p["D"]
-    return stretch, math.sqrt(p["D"] / p["m"]), math.sqrt(p["g"] / (p["l0"] + stretch))
-
-
 def simple_cases(fmu: Path, ratios=DAMPING_RATIOS) -> list[Case]:
     p = _parameters(fmu)
     omega0 = math.sqrt(p["g"] / p["L"])
@@ -143,26 +132,17 @@ def simple_cases(fmu: Path, ratios=DAMPING_RATIOS) -> list[Case]:
     return cases
 
 
-def double_case(fmu: Path) -> Case:
-    squares, shapes = double_modes(_parameters(fmu))
-    fastest = int(np.argmax(squares))
-    omega = math.sqrt(squares[fastest])
-    shape = shapes[:, fastest]
-    shape = 0.01 * shape / np.max(np.abs(shape))
-    eigenvalues = tuple(s * math.sqrt(q) / omega for q in squares for s in (1j, -1j))
-    return Case("DoublePendulum", 0.0, 0.01, omega,
-                {"phi1": float(shape[0]), "phi2": float(shape[1]), "omega1": 0.0, "omega2": 0.0},
-                {"phi1": 0.0, "phi2": 0.0, "omega1": 0.0, "omega2": 0.0}, eigenvalues)
-
-
-def spring_case(fmu: Path) -> Case:
-    """Hanging at rest the pendulum and the spring modes decouple; the faster one is released."""
-    stretch, spring, swing = spring_modes(_parameters(fmu))
-    omega = max(spring, swing)
-    start = ({"phi": 0.0, "eps": stretch + 0.01} if spring >= swing else {"phi": 0.01, "eps": stretch})
-    eigenvalues = tuple(s * w / omega for w in (spring, swing) for s in (1j, -1j))
-    return Case("SpringPendulum", 0.0, 0.01, omega, dict(start, omega=0.0, v_eps=0.0),
-                {"phi": 0.0, "eps": stretch, "omega": 0.0, "v_eps": 0.0}, eigenvalues)
+def mode_case(fmu: Path) -> Case | None:
+    """The object released at rest in its fastest normal mode (largest coordinate 0.01), undamped;
+    None for an object without a linear model (driven, or singular at rest)."""
+    spec = object_file_in(fmu)
+    modes = normal_modes(derive(spec)) if spec is not None else None
+    if modes is None:
+        return None
+    omega = math.sqrt(float(np.max(modes.squares)))
+    velocities = {c.velocity: 0.0 for c in spec.coordinates}
+    return Case(spec.identifier, 0.0, 0.01, omega, {**modes.fastest_release(0.01), **velocities},
+                {**modes.rest, **velocities}, tuple(lam / omega for lam in modes.eigenvalues()))
 
 
 @dataclass
@@ -252,18 +232,22 @@ def measure(job: tuple[str, Case, str, dict]) -> Limit:
 QUICK_DAMPING_RATIOS = (0.0, 0.5, 10.0)
 
 
-def cases(fmu_dir: Path, full: bool = False, quick: bool = False) -> list[Case]:
+def cases(fmu_dir: Path, full: bool = False, quick: bool = False, objects: list[str] | None = None) -> list[Case]:
+    """The SimplePendulum's damping rays and large swing, then every other object of the registry
+    (or of `objects`) with a linear model in its fastest mode."""
     fmu_dir = Path(fmu_dir)
     ratios = FULL_DAMPING_RATIOS if full else QUICK_DAMPING_RATIOS if quick else DAMPING_RATIOS
-    return [*simple_cases(fmu_dir / "SimplePendulum.fmu", ratios),
-            double_case(fmu_dir / "DoublePendulum.fmu"), spring_case(fmu_dir / "SpringPendulum.fmu")]
+    chosen = list(objects) if objects is not None else list(object_names())
+    found = [simple_cases(fmu_dir / "SimplePendulum.fmu", ratios)] if "SimplePendulum" in chosen else []
+    found += [[mode_case(fmu_dir / f"{name}.fmu")] for name in chosen if name != "SimplePendulum"]
+    return [case for group in found for case in group if case is not None]
 
 
 def atlas(fmu_dir: Path, methods=FIXED_STEP, full: bool = False, scheduler: str | None = None,
-          workers: int | None = None, quick: bool = False) -> list[Limit]:
+          workers: int | None = None, quick: bool = False, objects: list[str] | None = None) -> list[Limit]:
     tables = method_tables()
     jobs = [(str(Path(fmu_dir) / f"{case.object}.fmu"), case, method, tables[method])
-            for case in cases(fmu_dir, full, quick) for method in methods]
+            for case in cases(fmu_dir, full, quick, objects) for method in methods]
     return run_sweep(measure, jobs, scheduler, workers)
 
 
@@ -305,19 +289,12 @@ def measured_point(limit: Limit, case: Case) -> complex:
 
 
 def linearized_eigenvalues(kind: str, p: dict[str, float]) -> list[complex]:
-    """Eigenvalues [1/s] of a pendulum linearized about hanging at rest, its damping d included (the
-    models apply -d qdot to every coordinate's acceleration, so each mode gets lambda^2 + d lambda +
-    omega^2 = 0)."""
-    if kind == "SimplePendulum":
-        squares = [p["g"] / p["L"]]
-    elif kind == "DoublePendulum":
-        squares = [float(v) for v in double_modes(p)[0]]
-    elif kind == "SpringPendulum":
-        squares = [w * w for w in spring_modes(p)[1:]]
-    else:
-        raise ValueError(kind)
-    d = p.get("d", 0.0)
-    return [(-d + sign * complex(d * d - 4 * w2) ** 0.5) / 2 for w2 in squares for sign in (1, -1)]
+    """Eigenvalues [1/s] of an object linearized about rest at parameters p, its damping d included
+    (normal modes from the object file's energies)."""
+    modes = normal_modes(derive(read_object_file(object_file(kind))), p)
+    if modes is None:
+        raise ValueError(f"{kind} has no linear model")
+    return modes.eigenvalues(p.get("d", 0.0))
 
 
 def stable_over(table: dict, eigenvalues: list[complex], h: float, duration: float) -> bool:
