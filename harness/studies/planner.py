@@ -1,19 +1,24 @@
 """The scene planner: per object, the cheapest model, method and internal step that still keeps every
 visible point within the scene's position tolerance at every frame, for the scene's duration.
 
-How each candidate's error is predicted (before it is trusted):
-  * SimplePendulum `linear` (closed form): its difference from the nonlinear motion is computed
-    outright against the reference (the exact elliptic solution when undamped from rest);
+Any object made from an object file can be planned. How each candidate's error is predicted (before
+it is trusted):
+  * `model = linear` (closed form, for every object with a stable rest state and no force input set):
+    its difference from the nonlinear motion is computed outright against the reference;
   * a fixed-step method at step h: step doubling on the frame grid, D = max |y_h - y_(h/2)|, error
     ~ D 2^p / (2^p - 1); trusted when a third run at h/4 shows the method's order (D(h)/D(h/2)
     within a factor 2.5 of 2^p) or D is below a hundredth of the tolerance;
   * a candidate is admitted only when its predicted error is at most half the tolerance and it is
     stable over the scene by the stability atlas's criterion (growth^(2N) <= 1.5 on the eigenvalues
-    of the object linearized at rest, N = duration / h).
+    of the object linearized at rest, from its energies, N = duration / h; an object without a linear
+    model, driven or singular at rest, relies on step doubling and the verification alone).
 The cheapest admitted candidate (right-hand-side evaluations, or closed-form evaluations, over the
-scene) is run against a tight reference (`reference.tight_reference`: exact, or long double with a
-step-halving estimate below a hundredth of the tolerance): that is the verified error. Should it
-exceed the tolerance, the next cheapest candidate is verified instead.
+scene) is run against a tight reference with an error estimate below a hundredth of the tolerance:
+for the thesis pendulums `reference.tight_reference` (exact, or long double over the hand-coded
+equations), for every other object the FMU's own nystrom5 at a step where halving it changes the
+visible points by less than that. That is the verified error. Should it exceed the tolerance, the
+next cheapest candidate is verified instead. The visible points are the scene's traces, by default
+the thesis pendulums' outer mass or an object's last point.
 
 Objects joined by connections are planned together: one method and step ratio for all pendulums and
 a communication step H (Gauss-Seidel, linear extrapolation), predicted by doubling H and h together
@@ -32,7 +37,8 @@ from harness.errors import HarnessError
 from harness.fmi.fmu_instance import FmuInstance, read_fmi2_description
 from harness.fmi.methods import ORDER
 from harness.fmi.simulation import Recorder, communication_grid
-from harness.objects.thesis.equations import Pendulum
+from harness.objects.proof import object_file_in
+from harness.objects.thesis.equations import OUTER_MASS, Pendulum
 from harness.objects.thesis.reference import tight_reference
 from harness.studies.coupled_plan import plan_coupled
 from harness.studies.plans import DEFAULT, SAFETY, ObjectPlan, largest_distance, step_doubling
@@ -58,7 +64,7 @@ class ObjectRunner:
     def __init__(self, component: Component, duration: float, frame: float, columns: list[tuple[str, str]]):
         self.component = component
         self.instance = FmuInstance(component.fmu, name=component.name)
-        self.simple = self.instance.model_description.coSimulation.modelIdentifier == "SimplePendulum"
+        self.switchable = "model" in self.instance.variables  # an object with a linear model
         self.grid = communication_grid(0.0, duration, frame)
         self.columns = columns
         self.recorder = Recorder(self.instance, self.grid, [c for pair in columns for c in pair])
@@ -83,11 +89,33 @@ class ObjectRunner:
         self.instance.free()
 
 
+THESIS_PENDULUMS = tuple(OUTER_MASS)
+
+
+def object_parameters(component: Component) -> dict[str, float]:
+    """The FMU's Real start values with the scene's overrides."""
+    description = read_fmi2_description(component.fmu)
+    values = {v.name: float(v.start) for v in description.modelVariables if v.type == "Real" and v.start is not None}
+    values.update({k: float(v) for k, v in component.start.items() if not isinstance(v, str)})
+    return values
+
+
+def object_eigenvalues(kind: str, component: Component) -> list[complex] | None:
+    """The object's eigenvalues linearized at rest, or None for one without a linear model."""
+    try:
+        return linearized_eigenvalues(kind, object_parameters(component))
+    except ValueError:
+        return None
+
+
 def reference_positions(component: Component, kind: str, duration: float, frame: float,
                         columns: list[tuple[str, str]], tolerance: float) -> tuple[np.ndarray, float]:
     """The tight reference's visible points (frames, points, 2) and its estimated error."""
+    eigenvalues = object_eigenvalues(kind, component)
+    if kind not in THESIS_PENDULUMS:
+        return _fmu_reference(component, duration, frame, columns, tolerance, eigenvalues)
     pendulum = Pendulum.from_fmu(component.fmu, component.start)
-    eigen = max(abs(lam) for lam in linearized_eigenvalues(kind, pendulum.parameters))
+    eigen = max(abs(lam) for lam in eigenvalues)
     steps = max(4, math.ceil(frame * eigen / 0.02))  # h * |lambda| about 0.02 to start with
     for _ in range(4):
         reference = tight_reference(pendulum, duration, frame, steps)
@@ -101,21 +129,27 @@ def reference_positions(component: Component, kind: str, duration: float, frame:
     return np.stack([points[c] for c in columns], axis=1), reference.estimated_error
 
 
-def _closed_form_positions(pendulum: Pendulum, times: np.ndarray, columns) -> np.ndarray:
-    """The small-angle motion phi'' = -(g/L) phi - d phi' from rest or from (phi0, omega0), exactly."""
-    p = pendulum.parameters
-    w0, d = math.sqrt(p["g"] / p["L"]), p["d"]
-    phi0, omega0 = pendulum.start
-    roots = np.roots([1.0, d, w0 * w0]).astype(complex)
-    if abs(roots[0] - roots[1]) < 1e-9 * w0:  # critical damping
-        r = roots[0].real
-        phi = (phi0 + (omega0 - r * phi0) * times) * np.exp(r * times)
-    else:
-        a = (omega0 - roots[1] * phi0) / (roots[0] - roots[1])
-        phi = (a * np.exp(roots[0] * times) + (phi0 - a) * np.exp(roots[1] * times)).real
-    states = np.column_stack([phi, np.zeros_like(phi)])
-    points = pendulum.points(states)
-    return np.stack([points[c] for c in columns], axis=1)
+def _fmu_reference(component: Component, duration: float, frame: float, columns: list[tuple[str, str]],
+                   tolerance: float, eigenvalues: list[complex] | None) -> tuple[np.ndarray, float]:
+    """nystrom5 (order 5) at h and h/2 until |y_h - y_(h/2)| / 31, the finer run's error estimate,
+    is below a hundredth of the tolerance; the finer run is the reference."""
+    runner = ObjectRunner(component, duration, frame, columns)
+    try:
+        default_h = float(runner.instance.variables["h"].start)
+        h = min(frame, default_h / 4) if eigenvalues is None else \
+            min(frame, 0.05 / max(1e-12, max(abs(lam) for lam in eigenvalues)))
+        steps = max(1, math.ceil(frame / h))
+        coarse, _ = runner.run(_settings(runner, "nystrom5", frame / steps))
+        for _ in range(6):
+            fine, _ = runner.run(_settings(runner, "nystrom5", frame / (2 * steps)))
+            estimate = largest_distance(coarse, fine) / 31
+            if estimate <= tolerance / 100:
+                return fine, estimate
+            coarse, steps = fine, 2 * steps
+        raise HarnessError(f"{component.name}: no reference within {tolerance / 100:.1e} m "
+                           f"(estimate {estimate:.1e} m at h = {frame / steps:.3g} s)")
+    finally:
+        runner.close()
 
 
 def _predict(runner: ObjectRunner, method: str, h: float, tolerance: float) -> tuple[float, int, str] | None:
@@ -131,7 +165,7 @@ def _predict(runner: ObjectRunner, method: str, h: float, tolerance: float) -> t
 
 def _settings(runner: ObjectRunner, method: str, h: float) -> dict:
     settings = {"solver": method, "h": h}
-    if runner.simple:
+    if runner.switchable:
         settings["model"] = "nonlinear"
     return settings
 
@@ -140,21 +174,24 @@ def plan_object(job: tuple[Component, float, float, float, list, dict]) -> Objec
     """Plans one independent object (runs in a worker; `tables` are method_tables(), read by the caller)."""
     component, duration, frame, tolerance, columns, tables = job
     kind = read_fmi2_description(component.fmu).coSimulation.modelIdentifier
-    pendulum = Pendulum.from_fmu(component.fmu, component.start)
-    eigenvalues = linearized_eigenvalues(kind, pendulum.parameters)
+    eigenvalues = object_eigenvalues(kind, component)
     reference, _ = reference_positions(component, kind, duration, frame, columns, tolerance)
     runner = ObjectRunner(component, duration, frame, columns)
+
+    def stable(method: str, h: float) -> bool:
+        return eigenvalues is None or stable_over(tables[method], eigenvalues, h, duration)
     try:
         candidates: list[Candidate] = []
-        if kind == "SimplePendulum" and not any(k in component.start for k in ("F_x", "F_y")):
-            exact = largest_distance(_closed_form_positions(pendulum, runner.grid, columns), reference)
-            # the FMU's closed form: one evaluation per frame
-            candidates.append(Candidate("linear", "closed form", frame, exact, len(runner.grid) - 1,
-                                        "closed form against the reference"))
+        inputs = {v.name for v in runner.instance.model_description.modelVariables if v.causality == "input"}
+        if runner.switchable and not inputs & set(component.start):
+            # the FMU's closed form, one evaluation per frame: its error against the reference outright
+            linear, _ = runner.run({"model": "linear", "h": frame})
+            candidates.append(Candidate("linear", "closed form", frame, largest_distance(linear, reference),
+                                        len(runner.grid) - 1, "closed form against the reference"))
         for method in ORDER:
             for k in SUBSTEPS:
                 h = frame / k
-                if not stable_over(tables[method], eigenvalues, h, duration):
+                if not stable(method, h):
                     continue
                 prediction = _predict(runner, method, h, tolerance)
                 if prediction is not None and prediction[0] <= SAFETY * tolerance:
@@ -162,7 +199,7 @@ def plan_object(job: tuple[Component, float, float, float, list, dict]) -> Objec
                     break
         default_positions, default_cost = runner.run(_settings(runner, *DEFAULT))
         default_error = largest_distance(default_positions, reference)
-        if stable_over(tables[DEFAULT[0]], eigenvalues, DEFAULT[1], duration):
+        if stable(*DEFAULT):
             prediction = _predict(runner, *DEFAULT, tolerance)
             if prediction is not None and prediction[0] <= SAFETY * tolerance:
                 candidates.append(Candidate("nonlinear", *DEFAULT, prediction[0], default_cost, "step doubling"))
@@ -198,19 +235,21 @@ def plan_scene(system: System, tolerance: float | None = None, duration: float |
     if system.connections:
         return plan_coupled(system, tolerance, duration, frame, scheduler, workers)
     for component in system.components:
-        if read_fmi2_description(component.fmu).coSimulation.modelIdentifier not in ("SimplePendulum",
-                                                                                       "DoublePendulum",
-                                                                                       "SpringPendulum"):
-            raise HarnessError(f"{component.name}: only pendulums can be planned alone")
+        if object_file_in(component.fmu) is None:
+            raise HarnessError(f"{component.name}: only objects made from an object file can be planned alone")
     tables = method_tables()
     jobs = [(c, duration, frame, tolerance, _columns(system, c), tables) for c in system.components]
     return run_sweep(plan_object, jobs, scheduler, workers)
 
 
 def _columns(system: System, component: Component) -> list[tuple[str, str]]:
-    from harness.objects.thesis.equations import OUTER_MASS
+    if component.name in system.traces:
+        return [tuple(pair) for pair in system.traces[component.name]]
     kind = read_fmi2_description(component.fmu).coSimulation.modelIdentifier
-    return [tuple(pair) for pair in system.traces.get(component.name, [OUTER_MASS[kind]])]
+    if kind in OUTER_MASS:
+        return [OUTER_MASS[kind]]
+    last = object_file_in(component.fmu).points[-1]
+    return [(last.outputs["x"], last.outputs["y"])]
 
 
 def write_plan_csv(plans: list[ObjectPlan], path: Path) -> None:
