@@ -7,6 +7,7 @@ messages kept as a list so that callers can report or assert them.
 from __future__ import annotations
 
 import ctypes
+import shutil
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -109,7 +110,15 @@ class FmuInstance:
         self._raw = None
         self._items: dict[str, dict[str, int]] = {}
         self.model_description = read_fmi2_description(self.path)
+        self._extracted = unzipdir is None  # a folder this instance made, and removes when freed
         self.unzipdir = unzipdir or extract(str(self.path))
+        try:
+            self._load(kind, name, logging_on)
+        except BaseException:
+            self._remove_extracted()
+            raise
+
+    def _load(self, kind: str, name: str, logging_on: bool) -> None:
         self.variables = {v.name: v for v in self.model_description.modelVariables}
         self.log = LogCollector()
         interface = self.model_description.coSimulation if kind == "CS" else self.model_description.modelExchange
@@ -273,6 +282,12 @@ class FmuInstance:
         if self.fmu is not None:
             self.fmu.freeInstance()
             self.fmu = None
+        self._remove_extracted()
+
+    def _remove_extracted(self) -> None:
+        if self._extracted:
+            shutil.rmtree(self.unzipdir, ignore_errors=True)
+            self._extracted = False
 
     def __enter__(self) -> "FmuInstance":
         return self
