@@ -179,7 +179,7 @@ def command_plan(args: argparse.Namespace) -> int:
     print(f"{system.name}: {duration:g} s, tolerance {tolerance:.3g} m at every frame "
           f"({1 / system.frame_step():g} per second)")
     print(f"{'object':14s} {'plan':28s} {'predicted':>10s} {'verified':>10s} {'cost':>7s} | "
-          f"{'default rk4 h=0.008':>20s} {'cost':>7s}  verdict")
+          f"{'default: rk4, own h':>20s} {'cost':>7s}  verdict")
     for p in plans:
         choice = "linear, closed form" if p.model == "linear" else f"{p.method}, h = {p.h:.4g}"
         if math.isfinite(p.communication_step):

@@ -9,7 +9,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-DEFAULT = ("rk4", 0.008)
+DEFAULT = ("rk4", 0.008)  # the coupled pendulums'; a single object's default is rk4 at its own h
 SAFETY = 0.5
 
 
@@ -23,7 +23,7 @@ class ObjectPlan:
     predicted_error: float  # metres
     verified_error: float  # metres, against the tight reference
     cost: int  # evaluations over the scene (right-hand side, or closed form)
-    default_error: float  # rk4, h = 0.008, verified the same way
+    default_error: float  # rk4 at the object's default h, verified the same way
     default_cost: int
     how: str  # how the error was predicted
     tolerance: float
