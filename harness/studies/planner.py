@@ -109,9 +109,10 @@ def object_eigenvalues(kind: str, component: Component) -> list[complex] | None:
 
 
 def reference_positions(component: Component, kind: str, duration: float, frame: float,
-                        columns: list[tuple[str, str]], tolerance: float) -> tuple[np.ndarray, float]:
-    """The tight reference's visible points (frames, points, 2) and its estimated error."""
-    eigenvalues = object_eigenvalues(kind, component)
+                        columns: list[tuple[str, str]], tolerance: float,
+                        eigenvalues: list[complex] | None) -> tuple[np.ndarray, float]:
+    """The tight reference's visible points (frames, points, 2) and its estimated error
+    (`eigenvalues`: the object's at rest, or None without a linear model)."""
     if kind not in THESIS_PENDULUMS:
         return _fmu_reference(component, duration, frame, columns, tolerance, eigenvalues)
     pendulum = Pendulum.from_fmu(component.fmu, component.start)
@@ -175,7 +176,7 @@ def plan_object(job: tuple[Component, float, float, float, list, dict]) -> Objec
     component, duration, frame, tolerance, columns, tables = job
     kind = read_fmi2_description(component.fmu).coSimulation.modelIdentifier
     eigenvalues = object_eigenvalues(kind, component)
-    reference, _ = reference_positions(component, kind, duration, frame, columns, tolerance)
+    reference, _ = reference_positions(component, kind, duration, frame, columns, tolerance, eigenvalues)
     runner = ObjectRunner(component, duration, frame, columns)
 
     def stable(method: str, h: float) -> bool:
