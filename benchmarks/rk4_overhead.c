@@ -114,7 +114,8 @@ static double run_fmu(const Api *api, long steps, double *result)
 }
 
 /* The textbook RK4 loop, written out once per right-hand side (a macro rather than a function
- * pointer, so that each right-hand side is inlined as it would be in a program of its own). */
+ * pointer, so that each right-hand side is inlined as it would be in a program of its own). The
+ * stage times matter for a driven (rheonomic) model: t_n = n h, t_n + h/2, t_n + h. */
 #define TEXTBOOK_RK4(RHS, steps, x)                                                    \
     do {                                                                               \
         double y_[N_STATES], k1_[N_STATES], k2_[N_STATES], k3_[N_STATES], k4_[N_STATES]; \
@@ -122,13 +123,14 @@ static double run_fmu(const Api *api, long steps, double *result)
         long n_;                                                                       \
         int i_;                                                                        \
         for (n_ = 0; n_ < (steps); n_++) {                                             \
-            RHS(x, k1_);                                                               \
+            const double t_ = (double)n_ * h_;                                         \
+            RHS(t_, x, k1_);                                                           \
             for (i_ = 0; i_ < N_STATES; i_++) y_[i_] = x[i_] + 0.5 * h_ * k1_[i_];     \
-            RHS(y_, k2_);                                                              \
+            RHS(t_ + 0.5 * h_, y_, k2_);                                               \
             for (i_ = 0; i_ < N_STATES; i_++) y_[i_] = x[i_] + 0.5 * h_ * k2_[i_];     \
-            RHS(y_, k3_);                                                              \
+            RHS(t_ + 0.5 * h_, y_, k3_);                                               \
             for (i_ = 0; i_ < N_STATES; i_++) y_[i_] = x[i_] + h_ * k3_[i_];           \
-            RHS(y_, k4_);                                                              \
+            RHS(t_ + h_, y_, k4_);                                                     \
             for (i_ = 0; i_ < N_STATES; i_++)                                          \
                 x[i_] += h_ / 6.0 * (k1_[i_] + 2.0 * k2_[i_] + 2.0 * k3_[i_] + k4_[i_]); \
         }                                                                              \
@@ -144,7 +146,7 @@ static double run_generated(long steps, double *result)
     prepare_generated(real, integer, &c);
     memcpy(x, real, sizeof x);
     t0 = now();
-#define GENERATED_RHS(state, dx) model_derivatives(&c, 0.0, state, NULL, dx)
+#define GENERATED_RHS(time, state, dx) model_derivatives(&c, time, state, NULL, dx)
     TEXTBOOK_RK4(GENERATED_RHS, steps, x);
 #undef GENERATED_RHS
     t1 = now();
@@ -163,7 +165,7 @@ static double run_bare(long steps, double *result)
     hand_prepare(real, &c);
     memcpy(x, real, sizeof x);
     t0 = now();
-#define HAND_RHS(state, dx) hand_rhs(&c, state, dx)
+#define HAND_RHS(time, state, dx) ((void)(time), hand_rhs(&c, state, dx)) /* the thesis pendulums: autonomous */
     TEXTBOOK_RK4(HAND_RHS, steps, x);
 #undef HAND_RHS
     t1 = now();

@@ -114,8 +114,8 @@ def command_chart(args: argparse.Namespace) -> int:
     from harness.fmi.fmus import build_fmus
     from harness.objects.registry import object_names
     from harness.studies.work_precision import PENDULUMS
-    known = list(PENDULUMS) if args.kind == "work-precision" else list(object_names())
-    objects = args.objects or known
+    known = list(object_names())
+    objects = args.objects or (list(PENDULUMS) if args.kind == "work-precision" else known)
     unknown = sorted(set(objects) - set(known))
     if unknown:
         raise HarnessError(f"--objects: {', '.join(unknown)} is not one of {', '.join(known)}")
@@ -125,7 +125,8 @@ def command_chart(args: argparse.Namespace) -> int:
     if args.kind == "work-precision":
         from harness.studies.charts import work_precision_chart
         from harness.studies.work_precision import pareto_front, settings, work_precision, write_csv
-        points = work_precision(settings(objects, repeats=args.repeats), args.scheduler, args.workers)
+        points = work_precision(settings(objects, repeats=args.repeats, quick=args.quick), args.scheduler,
+                                args.workers)
         write_csv(points, out / "work-precision.csv")
         written = [out / "work-precision.csv", *work_precision_chart(points, out)]
         for name in objects:
@@ -137,10 +138,11 @@ def command_chart(args: argparse.Namespace) -> int:
         from harness.fmi.fmus import build_dir
         from harness.studies.stability import atlas, cases, method_tables, write_csv
         fmu_dir = build_dir() / "fmus"
-        limits = atlas(fmu_dir, full=args.full, scheduler=args.scheduler, workers=args.workers, objects=objects)
+        limits = atlas(fmu_dir, full=args.full, scheduler=args.scheduler, workers=args.workers, quick=args.quick,
+                       objects=objects)
         write_csv(limits, out / "stability.csv")
-        written = [out / "stability.csv",
-                   *stability_charts(limits, cases(fmu_dir, args.full, objects=objects), method_tables(), out)]
+        written = [out / "stability.csv", *stability_charts(limits, cases(fmu_dir, args.full, args.quick, objects),
+                                                            method_tables(), out)]
         linear = [x for x in limits if x.theory_limit == x.theory_limit]
         worst = max(linear, key=lambda x: abs(x.measured_limit / x.theory_limit - 1))
         print(f"{len(limits)} limits measured; largest deviation from the prediction in the linear cases: "
@@ -238,8 +240,10 @@ def build_parser() -> argparse.ArgumentParser:
     p = sub.add_parser("chart", help="sweeps and their charts: work-precision, stability, coupling")
     p.add_argument("kind", choices=["work-precision", "stability", "coupling"], help="which sweep")
     p.add_argument("--out", default="charts", help="output folder for the CSV and the PNG/SVG charts")
-    p.add_argument("--objects", nargs="+", metavar="NAME", help="objects to include (default: work-precision the three thesis pendulums, "
-                   "stability every object with a linear model)")
+    p.add_argument("--objects", nargs="+", metavar="NAME", help="objects to include, any of the registry's "
+                   "(default: work-precision the three thesis pendulums, stability every object with a linear model)")
+    p.add_argument("--quick", action="store_true", help="work-precision and stability: every other step, "
+                   "tolerance and damping ratio (a chart in seconds)")
     p.add_argument("--repeats", type=int, default=3, help="timed repeats per point; the median is kept (default 3)")
     p.add_argument("--system", help="coupling: the system (default scenes/coupled_pendulums.json)")
     p.add_argument("--stop", type=float, help="coupling: simulated time [s] (default: the system's)")

@@ -1,5 +1,5 @@
 """One registry: an object file dropped into `modelDescription/` is built by CMake and known to
-validate, the stability chart, the planner and scenes, with no edit anywhere else.
+validate, the work-precision and stability charts, the planner and scenes, with no edit anywhere else.
 
 The test copies the project's tracked files into a temporary folder (with the SimplePendulum and the
 Spring, which the build's scene packing needs, and without the other objects, to keep the build
@@ -70,6 +70,20 @@ def test_the_stability_chart_has_its_normal_modes(project_with_a_new_object, tmp
     assert rows and {row["object"] for row in rows} == {"Trolley"}
     for row in rows:  # a linear mode: the measured limit where the method's amplification predicts it
         assert float(row["measured_limit"]) == pytest.approx(float(row["theory_limit"]), rel=0.05)
+
+
+def test_the_work_precision_chart_measures_it(project_with_a_new_object, tmp_path):
+    result = harness(project_with_a_new_object, "chart", "work-precision", "--objects", "Trolley", "--quick",
+                     "--repeats", "1", "--out", str(tmp_path))
+    assert result.returncode == 0, result.stderr
+    assert "Trolley: Pareto front" in result.stdout
+    with open(tmp_path / "work-precision.csv") as handle:
+        rows = list(csv.DictReader(handle))
+    assert {row["object"] for row in rows} == {"Trolley"}
+    rk4 = sorted((row for row in rows if row["method"] == "rk4"), key=lambda row: -float(row["h"]))
+    # one step a quarter of the last: the error of a fourth-order method falls by about 4^4 = 256
+    assert 256 / 2 < float(rk4[0]["error"]) / float(rk4[1]["error"]) < 256 * 2
+    assert {"scipy-DOP853", "fmpy-CVode", "rkf45"} <= {row["method"] for row in rows}
 
 
 def test_a_scene_runs_and_plans_it_by_name(project_with_a_new_object, tmp_path):

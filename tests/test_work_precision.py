@@ -30,7 +30,8 @@ def sweep(fmu_paths, tmp_path_factory):
 def test_the_files_and_the_columns(sweep):
     out, points = sweep
     with open(out / "work-precision.csv") as handle:
-        assert next(csv.reader(handle)) == ["object", "method", "h", "tol", "error", "rhs_evals", "seconds"]
+        assert next(csv.reader(handle)) == ["object", "method", "h", "tol", "error", "rhs_evals", "seconds",
+                                         "reference_error"]
     for suffix in ("png", "svg"):
         assert (out / f"work-precision.{suffix}").stat().st_size > 10_000
     for name in PENDULUMS:

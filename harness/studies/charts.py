@@ -48,12 +48,15 @@ def work_precision_chart(points: list[Point], out: Path) -> list[Path]:
                     linewidth=2.2, alpha=0.35, label="Pareto front")
             ax.scatter([getattr(p, cost) for p in front], [p.error for p in front], s=70, facecolors="none",
                        edgecolors="black", linewidths=1.2, zorder=5)
+            floor = max((p.reference_error for p in mine), default=math.nan)
+            if floor > 0:  # errors below the reference's own are not resolved
+                ax.axhspan(floor * 1e-3, floor, color="grey", alpha=0.15, label="below the reference's error")
             ax.set_xscale("log")
             ax.set_yscale("log")
             ax.xaxis.set_minor_formatter(matplotlib.ticker.NullFormatter())
             ax.grid(True, which="major", alpha=0.3)
             ax.set_xlabel("right-hand-side evaluations" if cost == "rhs_evals" else "seconds (median of repeats)")
-            ax.set_ylabel("largest position error of the outer mass [m]")
+            ax.set_ylabel("largest position error of the traced point [m]")
             ax.set_title(f"{name}: error against {'evaluations' if cost == 'rhs_evals' else 'time'}")
     axes[0][-1].legend(fontsize=7, ncol=2, loc="lower left")
     figure.suptitle("Work-precision, 10 s from the default start, communication step 0.01 s")

@@ -16,7 +16,7 @@ The cheapest admitted candidate (right-hand-side evaluations, or closed-form eva
 scene) is run against a tight reference with an error estimate below a hundredth of the tolerance:
 for the thesis pendulums `reference.tight_reference` (exact, or long double over the hand-coded
 equations), for every other object the FMU's own nystrom5 at a step where halving it changes the
-visible points by less than that. That is the verified error. Should it exceed the tolerance, the
+visible points by less than that (`harness.studies.references`). That is the verified error. Should it exceed the tolerance, the
 next cheapest candidate is verified instead. The visible points are the scene's traces, by default
 the thesis pendulums' outer mass or an object's last point.
 
@@ -34,14 +34,14 @@ import numpy as np
 
 from harness.cosim.system import Component, System
 from harness.errors import HarnessError
-from harness.fmi.fmu_instance import FmuInstance, read_fmi2_description
+from harness.fmi.fmu_instance import read_fmi2_description
 from harness.fmi.methods import ORDER
-from harness.fmi.simulation import Recorder, communication_grid
 from harness.objects.proof import object_file_in
 from harness.objects.thesis.equations import OUTER_MASS, Pendulum
 from harness.objects.thesis.reference import tight_reference
 from harness.studies.coupled_plan import plan_coupled
 from harness.studies.plans import DEFAULT, SAFETY, ObjectPlan, largest_distance, step_doubling
+from harness.studies.references import ObjectRunner, fmu_reference, traced_columns
 from harness.studies.stability import linearized_eigenvalues, method_tables, stable_over
 from harness.studies.sweep import run_sweep
 
@@ -56,37 +56,6 @@ class Candidate:
     predicted: float
     cost: int
     how: str
-
-
-class ObjectRunner:
-    """Runs one object (an FMU with the scene's start values) on the frame grid."""
-
-    def __init__(self, component: Component, duration: float, frame: float, columns: list[tuple[str, str]]):
-        self.component = component
-        self.instance = FmuInstance(component.fmu, name=component.name)
-        self.switchable = "model" in self.instance.variables  # an object with a linear model
-        self.grid = communication_grid(0.0, duration, frame)
-        self.columns = columns
-        self.recorder = Recorder(self.instance, self.grid, [c for pair in columns for c in pair])
-
-    def run(self, overrides: dict) -> tuple[np.ndarray, int]:
-        """Positions (frames, points, 2) and the evaluations spent; inf positions after a discard."""
-        instance = self.instance
-        instance._require(instance.call("fmi2Reset"), "fmi2Reset")
-        instance.initialize(0.0, **{**self.component.start, **overrides})
-        result = self.recorder.run()
-        positions = np.full((len(self.grid), len(self.columns), 2), np.inf)
-        rows = len(result.values) if result.discarded_at is None else len(result.values) - 1
-        for k, (x, y) in enumerate(self.columns):
-            positions[:rows, k, 0] = result[x][:rows]
-            positions[:rows, k, 1] = result[y][:rows]
-        evaluations = int(instance.get("n_rhs")[0])
-        if overrides.get("model") == "linear":
-            evaluations = int(instance.get("n_steps")[0])
-        return positions, evaluations
-
-    def close(self) -> None:
-        self.instance.free()
 
 
 THESIS_PENDULUMS = tuple(OUTER_MASS)
@@ -132,25 +101,16 @@ def reference_positions(component: Component, kind: str, duration: float, frame:
 
 def _fmu_reference(component: Component, duration: float, frame: float, columns: list[tuple[str, str]],
                    tolerance: float, eigenvalues: list[complex] | None) -> tuple[np.ndarray, float]:
-    """nystrom5 (order 5) at h and h/2 until |y_h - y_(h/2)| / 31, the finer run's error estimate,
-    is below a hundredth of the tolerance; the finer run is the reference."""
-    runner = ObjectRunner(component, duration, frame, columns)
-    try:
-        default_h = float(runner.instance.variables["h"].start)
-        h = min(frame, default_h / 4) if eigenvalues is None else \
+    """The FMU's nystrom5 reference (`references.fmu_reference`) with an estimate below a hundredth of
+    the tolerance, starting at h |lambda| = 0.05 or, without eigenvalues, a quarter of the default h."""
+    with ObjectRunner(component, duration, frame, columns) as runner:
+        first_h = min(frame, runner.default_h / 4) if eigenvalues is None else \
             min(frame, 0.05 / max(1e-12, max(abs(lam) for lam in eigenvalues)))
-        steps = max(1, math.ceil(frame / h))
-        coarse, _ = runner.run(_settings(runner, "nystrom5", frame / steps))
-        for _ in range(6):
-            fine, _ = runner.run(_settings(runner, "nystrom5", frame / (2 * steps)))
-            estimate = largest_distance(coarse, fine) / 31
-            if estimate <= tolerance / 100:
-                return fine, estimate
-            coarse, steps = fine, 2 * steps
+        positions, estimate, h = fmu_reference(runner, first_h, tolerance / 100, halvings=6)
+    if not estimate <= tolerance / 100:
         raise HarnessError(f"{component.name}: no reference within {tolerance / 100:.1e} m "
-                           f"(estimate {estimate:.1e} m at h = {frame / steps:.3g} s)")
-    finally:
-        runner.close()
+                           f"(estimate {estimate:.1e} m at h = {h:.3g} s)")
+    return positions, estimate
 
 
 def _predict(runner: ObjectRunner, method: str, h: float, tolerance: float) -> tuple[float, int, str] | None:
@@ -158,17 +118,10 @@ def _predict(runner: ObjectRunner, method: str, h: float, tolerance: float) -> t
     costs = {}
 
     def run(scale: float) -> np.ndarray:
-        positions, costs[scale] = runner.run(_settings(runner, method, h * scale))
+        positions, costs[scale] = runner.run(runner.settings(method, h * scale))
         return positions
     predicted = step_doubling(run, ORDER[method], tolerance)
     return None if predicted is None else (predicted, costs[1.0], "step doubling")
-
-
-def _settings(runner: ObjectRunner, method: str, h: float) -> dict:
-    settings = {"solver": method, "h": h}
-    if runner.switchable:
-        settings["model"] = "nonlinear"
-    return settings
 
 
 def plan_object(job: tuple[Component, float, float, float, list, dict]) -> ObjectPlan:
@@ -200,7 +153,7 @@ def plan_object(job: tuple[Component, float, float, float, list, dict]) -> Objec
                     break
         # The default: rk4 at the object's own default step (0.008 s for the thesis pendulums).
         default = (DEFAULT[0], float(runner.instance.variables["h"].start))
-        default_positions, default_cost = runner.run(_settings(runner, *default))
+        default_positions, default_cost = runner.run(runner.settings(*default))
         default_error = largest_distance(default_positions, reference)
         if stable(*default):
             prediction = _predict(runner, *default, tolerance)
@@ -211,7 +164,7 @@ def plan_object(job: tuple[Component, float, float, float, list, dict]) -> Objec
         candidates.sort(key=lambda c: c.cost)
         for candidate in candidates:
             settings = ({"model": "linear", "h": frame} if candidate.model == "linear"
-                        else _settings(runner, candidate.method, candidate.h))
+                        else runner.settings(candidate.method, candidate.h))
             positions, cost = runner.run(settings)
             verified = largest_distance(positions, reference)
             if verified <= tolerance:
@@ -248,11 +201,7 @@ def plan_scene(system: System, tolerance: float | None = None, duration: float |
 def _columns(system: System, component: Component) -> list[tuple[str, str]]:
     if component.name in system.traces:
         return [tuple(pair) for pair in system.traces[component.name]]
-    kind = read_fmi2_description(component.fmu).coSimulation.modelIdentifier
-    if kind in OUTER_MASS:
-        return [OUTER_MASS[kind]]
-    last = object_file_in(component.fmu).points[-1]
-    return [(last.outputs["x"], last.outputs["y"])]
+    return [traced_columns(component.fmu)[:2]]  # what the scene's view shows of the traced point
 
 
 def write_plan_csv(plans: list[ObjectPlan], path: Path) -> None:

@@ -31,7 +31,7 @@ class ObjectPlan:
 
 
 def largest_distance(a: np.ndarray, b: np.ndarray) -> float:
-    d = np.hypot(*(a - b).transpose(2, 0, 1))
+    d = np.linalg.norm(a - b, axis=-1)
     return float(np.max(d)) if np.all(np.isfinite(d)) else math.inf
 
 

@@ -1,28 +1,40 @@
-"""Work-precision: what accuracy a given cost buys, for every pendulum and method, with the peers.
+"""Work-precision: what accuracy a given cost buys, for any object and method, with the peers.
 
 Each point runs 10 s from the FMU's default start values and parameters with a communication step of
-0.01 s. `error` is the largest Euclidean distance in metres between the outer mass and the
-reference over those points (`reference.tight_reference`: the exact elliptic solution for
-SimplePendulum, a long-double fifth-order run with a step-halving error estimate for the others).
-Cost is counted as right-hand-side evaluations (the FMU's `n_rhs`, scipy's `nfev`) and as seconds
-(median of repeats, the instance loaded once and reset between repeats).
+0.01 s. `error` is the largest Euclidean distance in metres between the traced point (the thesis
+pendulums' outer mass, any other object's last point, in 2-D or 3-D) and the reference over those
+points. The references: the exact elliptic solution for SimplePendulum, a long-double fifth-order
+run over the hand-coded equations with a step-halving error estimate for the other thesis pendulums
+(`harness.objects.thesis.reference`), the FMU's own nystrom5 at halved steps for every other object
+(`harness.studies.references`); each point carries its reference's estimated error. The fixed steps
+are scaled to the object's default step (Kapitza's pendulum, h = 1e-4 s, gets 64 times finer ones).
+The scipy peers integrate the hand-coded equations (thesis pendulums) or the SymPy derivation's
+(`harness.objects.motion`). Cost is counted as right-hand-side evaluations (the FMU's `n_rhs`, scipy's
+`nfev`) and as seconds (median of repeats, the instance loaded once and reset between repeats).
 """
 from __future__ import annotations
 
 import math
+import shutil
 import statistics
 import time
 from dataclasses import dataclass
+from functools import lru_cache
 from pathlib import Path
 
 import numpy as np
 
-from harness.fmi.fmu_instance import FmuInstance
+from harness.cosim.system import Component
+from harness.fmi.fmu_instance import FmuInstance, read_fmi2_description
 from harness.fmi.methods import FIXED_STEP, ORDER
 from harness.fmi.simulation import Recorder, communication_grid
+from harness.objects.derivation import derive
+from harness.objects.motion import ObjectMotion
+from harness.objects.proof import object_file_in
 from harness.objects.thesis.equations import OUTER_MASS, Pendulum
-from harness.objects.thesis.reference import Reference, tight_reference
+from harness.objects.thesis.reference import tight_reference
 from harness.studies.records import columns_of, read_records, write_records
+from harness.studies.references import ObjectRunner, fmu_reference, traced_columns
 from harness.studies.sweep import run_sweep
 
 STOP, STEP = 10.0, 0.01
@@ -48,6 +60,7 @@ class Point:
     error: float  # metres; inf when the run stopped early (fmi2Discard)
     rhs_evals: int
     seconds: float
+    reference_error: float  # metres: the reference's estimated error (errors below it are not resolved)
 
 
 @dataclass(frozen=True)
@@ -61,6 +74,13 @@ class Task:
     repeats: int
 
 
+def step_scale(fmu: str | Path) -> int:
+    """The power of two by which an object's fixed steps are finer than the thesis pendulums', from its
+    default step (0.008 s for theirs)."""
+    default_h = next(float(v.start) for v in read_fmi2_description(Path(fmu)).modelVariables if v.name == "h")
+    return 2 ** max(0, round(math.log2(0.008 / default_h)))
+
+
 def settings(objects=PENDULUMS, repeats: int = 3, fmu_dir: Path | None = None, quick: bool = False) -> list[Task]:
     """Every point of the chart; quick: every other step and tolerance (a chart in a few seconds)."""
     from harness.fmi.fmus import build_dir
@@ -70,8 +90,10 @@ def settings(objects=PENDULUMS, repeats: int = 3, fmu_dir: Path | None = None, q
     tasks = []
     for name in objects:
         fmu = str(folder / f"{name}.fmu")
+        scale = step_scale(fmu)
         for method in FIXED_STEP:
-            tasks += [Task(name, method, STEP / k, nan, fmu, repeats) for k in thin(SUBSTEPS[ORDER[method]])]
+            tasks += [Task(name, method, STEP / (k * scale), nan, fmu, repeats)
+                      for k in thin(SUBSTEPS[ORDER[method]])]
         tasks += [Task(name, "rkf45", nan, tol, fmu, repeats) for tol in thin(RKF45_TOLERANCES)]
         tasks += [Task(name, f"scipy-{m}", nan, tol, fmu, repeats) for m in SCIPY_METHODS
                   for tol in thin(PEER_TOLERANCES)]
@@ -81,18 +103,41 @@ def settings(objects=PENDULUMS, repeats: int = 3, fmu_dir: Path | None = None, q
 
 # Reference steps per communication step: the step-halving estimate then stays below 1e-12 m.
 REFERENCE_SUBSTEPS = {"SimplePendulum": 16, "DoublePendulum": 40, "SpringPendulum": 16}
+REFERENCE_TARGET = 1e-12  # metres: the estimate the FMU reference of any other object aims at
 
 
-def reference_for(fmu: str) -> Reference:
+@dataclass
+class TracedReference:
+    positions: np.ndarray  # (outputs, 2 or 3): the traced point at 0, STEP, ..., STOP
+    estimated_error: float  # metres
+
+
+def reference_for(fmu: str) -> TracedReference:
     """The tight reference of an FMU's default run."""
-    pendulum = Pendulum.from_fmu(fmu)
-    return tight_reference(pendulum, STOP, STEP, REFERENCE_SUBSTEPS[pendulum.name])
+    name = read_fmi2_description(Path(fmu)).coSimulation.modelIdentifier
+    if name in OUTER_MASS:
+        reference = tight_reference(Pendulum.from_fmu(fmu), STOP, STEP, REFERENCE_SUBSTEPS[name])
+        return TracedReference(reference.positions, reference.estimated_error)
+    with ObjectRunner(Component(name, Path(fmu)), STOP, STEP, [traced_columns(fmu)]) as runner:
+        positions, estimate, _ = fmu_reference(runner, runner.default_h / 8, REFERENCE_TARGET)
+    return TracedReference(positions[:, 0, :], estimate)
 
 
-def position_error(positions: np.ndarray, reference: Reference) -> float:
+@lru_cache(maxsize=None)  # per worker process: the derivation of a large object takes about a second
+def peer_equations(fmu: str) -> Pendulum | ObjectMotion:
+    """The equations the scipy peers integrate: hand-coded for the thesis pendulums, the SymPy
+    derivation's for every other object; values are the FMU's start values."""
+    description = read_fmi2_description(Path(fmu))
+    if description.coSimulation.modelIdentifier in OUTER_MASS:
+        return Pendulum.from_fmu(fmu)
+    values = {v.name: float(v.start) for v in description.modelVariables if v.type == "Real" and v.start is not None}
+    return ObjectMotion(derive(object_file_in(fmu)), values)
+
+
+def position_error(positions: np.ndarray, reference: TracedReference) -> float:
     if len(positions) != len(reference.positions):
         return math.inf
-    return float(np.max(np.hypot(*(positions - reference.positions).T)))
+    return float(np.max(np.linalg.norm(positions - reference.positions, axis=1)))
 
 
 def _median_seconds(run, repeats: int):
@@ -104,12 +149,13 @@ def _median_seconds(run, repeats: int):
     return statistics.median(times), result
 
 
-def _fmu_point(task: Task, reference: Reference) -> Point:
+def _fmu_point(task: Task, reference: TracedReference) -> Point:
     grid = communication_grid(0.0, STOP, STEP)
     start = {"solver": task.method}
     start.update({"h": task.h} if task.method != "rkf45" else {"tol": task.tol})
+    columns = traced_columns(task.fmu)
     with FmuInstance(task.fmu, name=task.object) as instance:
-        recorder = Recorder(instance, grid, list(OUTER_MASS[task.object]))
+        recorder = Recorder(instance, grid, list(columns))
 
         def run():
             instance._require(instance.call("fmi2Reset"), "fmi2Reset")
@@ -117,41 +163,48 @@ def _fmu_point(task: Task, reference: Reference) -> Point:
             return recorder.run()
         seconds, result = _median_seconds(run, task.repeats)
         evaluations = int(instance.get("n_rhs")[0])
-    error = math.inf if result.discarded_at is not None else position_error(result.values[:, 1:3], reference)
-    return Point(task.object, task.method, task.h, task.tol, error, evaluations, seconds)
+    error = math.inf if result.discarded_at is not None else \
+        position_error(result.values[:, 1:1 + len(columns)], reference)
+    return Point(task.object, task.method, task.h, task.tol, error, evaluations, seconds, reference.estimated_error)
 
 
-def _scipy_point(task: Task, reference: Reference) -> Point:
+def _scipy_point(task: Task, reference: TracedReference) -> Point:
     from scipy.integrate import solve_ivp
-    pendulum = Pendulum.from_fmu(task.fmu)
+    equations = peer_equations(task.fmu)
     grid = communication_grid(0.0, STOP, STEP)
 
     def run():
-        return solve_ivp(pendulum.rhs, (0.0, STOP), pendulum.start, method=task.method.split("-", 1)[1],
+        return solve_ivp(equations.rhs, (0.0, STOP), equations.start, method=task.method.split("-", 1)[1],
                          t_eval=grid, rtol=task.tol, atol=task.tol)
     seconds, solution = _median_seconds(run, task.repeats)
-    error = position_error(pendulum.outer_mass(solution.y.T), reference) if solution.success else math.inf
-    return Point(task.object, task.method, task.h, task.tol, error, int(solution.nfev), seconds)
+    error = position_error(equations.traced_point(solution.y.T, solution.t), reference) if solution.success \
+        else math.inf
+    return Point(task.object, task.method, task.h, task.tol, error, int(solution.nfev), seconds,
+                 reference.estimated_error)
 
 
-def _cvode_point(task: Task, reference: Reference) -> Point:
+def _cvode_point(task: Task, reference: TracedReference) -> Point:
     from fmpy import simulate_fmu
     from fmpy.model_description import read_model_description
     from fmpy import extract
     description = read_model_description(task.fmu)  # read once: simulate_fmu would parse it every run
+    columns = traced_columns(task.fmu)
     unzipped = extract(task.fmu)  # once per point, not per repeat
 
     def run():
         return simulate_fmu(unzipped, model_description=description, fmi_type="ModelExchange", solver="CVode",
                             relative_tolerance=task.tol, output_interval=STEP, stop_time=STOP,
-                            output=[*OUTER_MASS[task.object], "n_rhs"])
-    seconds, result = _median_seconds(run, task.repeats)
-    positions = np.column_stack([result[n] for n in OUTER_MASS[task.object]])
+                            output=[*columns, "n_rhs"])
+    try:
+        seconds, result = _median_seconds(run, task.repeats)
+    finally:
+        shutil.rmtree(unzipped, ignore_errors=True)
+    positions = np.column_stack([result[n] for n in columns])
     return Point(task.object, task.method, task.h, task.tol, position_error(positions, reference),
-                 int(result["n_rhs"][-1]), seconds)
+                 int(result["n_rhs"][-1]), seconds, reference.estimated_error)
 
 
-def compute(job: tuple[Task, Reference]) -> Point:
+def compute(job: tuple[Task, TracedReference]) -> Point:
     """One point: an FMU run, a scipy run or fmpy's Model Exchange run with CVode."""
     task, reference = job
     if task.method.startswith("scipy-"):

@@ -82,6 +82,10 @@ class Pendulum:
         """Positions (n, 2) of the outer mass for states (n, n_states)."""
         return self.points(states)[OUTER_MASS[self.name]]
 
+    def traced_point(self, states: np.ndarray, times: np.ndarray | None = None) -> np.ndarray:
+        """The point the studies trace (the outer mass; the anchor does not move, so times do not matter)."""
+        return self.outer_mass(states)
+
     def points(self, states: np.ndarray) -> dict[tuple[str, str], np.ndarray]:
         """Positions (n, 2) of every point the FMU reports, keyed by its output columns."""
         p = self.parameters

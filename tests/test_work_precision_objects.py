@@ -1,0 +1,126 @@
+"""The work-precision chart for objects made from object files: a 2-D object with a force input (the
+cart pendulum), a 3-D one (the spherical pendulum) and a driven one with a fine default step
+(Kapitza's pendulum). Its slopes are the methods' orders, its references are tight by an independent
+method, and the scipy peers integrate equations that agree with the independent numeric route."""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+from scipy.integrate import solve_ivp
+
+from harness.cli import main
+from harness.objects.derivation import derive
+from harness.objects.motion import ObjectMotion
+from harness.objects.numeric_route import NumericLagrangian
+from harness.objects.object_file import read_object_file
+from harness.objects.proof import random_values
+from harness.objects.registry import object_file, object_names
+from harness.objects.thesis.reference import slope
+from harness.studies.work_precision import (FIXED_STEP, ORDER, STEP, STOP, peer_equations, read_csv, reference_for,
+                                            step_scale)
+
+OBJECTS = ("CartPendulum", "SphericalPendulum", "KapitzaPendulum")
+NEW_OBJECTS = [name for name in object_names() if name not in ("SimplePendulum", "DoublePendulum", "SpringPendulum")]
+
+
+@pytest.fixture(scope="module")
+def sweep(fmu_paths, tmp_path_factory):
+    out = tmp_path_factory.mktemp("work-precision-objects")
+    assert main(["chart", "work-precision", "--out", str(out), "--repeats", "1", "--quick",
+                 "--objects", *OBJECTS]) == 0
+    return out, read_csv(out / "work-precision.csv")
+
+
+def test_every_method_and_peer_has_points(sweep):
+    out, points = sweep
+    assert (out / "work-precision.png").stat().st_size > 10_000
+    for name in OBJECTS:
+        for method in [*FIXED_STEP, "rkf45", "scipy-RK45", "scipy-DOP853", "scipy-LSODA", "fmpy-CVode"]:
+            mine = [p for p in points if p.object == name and p.method == method]
+            assert len(mine) >= 2, (name, method)
+            assert all(p.rhs_evals > 0 and p.error > 0 for p in mine), (name, method)
+        assert all(p.reference_error < 1e-12 for p in points if p.object == name)
+
+
+def test_the_fixed_steps_follow_the_default_step(sweep):
+    """Kapitza's pendulum (h = 1e-4 s by default) gets steps 64 times finer than the others (0.008 s)."""
+    finest = {name: min(p.h for p in sweep[1] if p.object == name and p.method == "rk4") for name in OBJECTS}
+    assert finest["KapitzaPendulum"] == pytest.approx(finest["CartPendulum"] / 64)
+    assert finest["CartPendulum"] == pytest.approx(STEP / 64)
+
+
+@pytest.mark.parametrize("name", OBJECTS)
+@pytest.mark.parametrize("method", ["heun", "rk3", "rk4", "nystrom5", "ab4", "ab6"])
+def test_slopes_are_the_orders(sweep, name, method):
+    """Through the finest settings whose errors lie above 100 times the reference's estimate and
+    below 1e-3 m: log(error) against log(evaluations) falls with the method's order."""
+    mine = sorted((p for p in sweep[1] if p.object == name and p.method == method
+                   and 100 * p.reference_error <= p.error <= 1e-3), key=lambda p: p.rhs_evals)[-3:]
+    assert len(mine) >= 2, [p.error for p in sweep[1] if p.object == name and p.method == method]
+    measured = -slope([p.rhs_evals for p in mine], [p.error for p in mine])
+    assert abs(measured - ORDER[method]) < 0.35, measured
+
+
+@pytest.mark.parametrize("name", OBJECTS)
+def test_tighter_tolerances_buy_accuracy(sweep, name):
+    for method in ("rkf45", "scipy-RK45", "scipy-DOP853", "scipy-LSODA", "fmpy-CVode"):
+        mine = sorted((p for p in sweep[1] if p.object == name and p.method == method), key=lambda p: p.tol)
+        assert mine[0].error * 100 < mine[-1].error, (method, [p.error for p in mine])
+
+
+@pytest.mark.parametrize("name", ["CartPendulum", "SphericalPendulum"])
+def test_the_fmu_reference_against_an_independent_method(fmu_paths, name):
+    """The FMU's nystrom5 reference and scipy's DOP853 at rtol 1e-12 over the SymPy derivation's
+    equations (another method, another code path) agree to 1e-9 m over 10 s."""
+    reference = reference_for(str(fmu_paths[name]))
+    equations = peer_equations(str(fmu_paths[name]))
+    t = np.linspace(0.0, STOP, int(round(STOP / STEP)) + 1)
+    solution = solve_ivp(equations.rhs, (0.0, STOP), equations.start, method="DOP853", t_eval=t, rtol=1e-12,
+                         atol=1e-12)
+    assert solution.success
+    traced = equations.traced_point(solution.y.T, solution.t)
+    assert traced.shape == reference.positions.shape == (len(t), 3 if name == "SphericalPendulum" else 2)
+    assert np.max(np.linalg.norm(traced - reference.positions, axis=1)) < 1e-9
+
+
+@pytest.mark.parametrize("name", NEW_OBJECTS)
+def test_the_peers_equations_are_the_numeric_routes(name):
+    """The scipy peers' right-hand side (lambdified from the derivation) against accelerations from
+    finite differences of the plainly evaluated T and U, with forces, damping and time."""
+    spec = read_object_file(object_file(name))
+    derivation, route = derive(spec), NumericLagrangian(spec)
+    rng = np.random.default_rng(11)
+    n = len(spec.coordinates)
+    for _ in range(4):
+        values = random_values(spec, rng)
+        motion = ObjectMotion(derivation, values)
+        got = np.array(motion.rhs(values["t"], motion.start))
+        expected = route.accelerations(values, values["t"])
+        assert np.allclose(got[:n], motion.start[n:], rtol=0, atol=0)
+        assert np.max(np.abs(got[n:] - expected)) <= 1e-9 * max(1.0, float(np.max(np.abs(expected))))
+
+
+@pytest.mark.parametrize("name", ["KapitzaPendulum", "SphericalPendulum"])
+def test_the_peers_traced_point_is_what_the_fmu_reports(open_fmu, fmu_paths, name):
+    """Positions from the peers' equations equal the FMU's outputs, the driven anchor's time included."""
+    from harness.studies.references import traced_columns
+    instance = open_fmu(name)
+    instance.initialize()
+    equations = peer_equations(str(fmu_paths[name]))
+    spec = read_object_file(object_file(name))
+    states = [c.name for c in spec.coordinates] + [c.velocity for c in spec.coordinates]
+    columns = traced_columns(fmu_paths[name])
+    time = 0.0
+    for _ in range(20):
+        assert instance.do_step(time, 0.0123) == 0
+        time += 0.0123
+        position = equations.traced_point(np.array([instance.get(*states)]), np.array([time]))[0]
+        assert np.allclose(position, instance.get(*columns), rtol=0, atol=1e-14)
+        assert math.isfinite(position[0])
+
+
+def test_step_scale_is_a_power_of_two(fmu_paths):
+    assert step_scale(fmu_paths["SimplePendulum"]) == 1
+    assert step_scale(fmu_paths["KapitzaPendulum"]) == 64
