@@ -231,7 +231,7 @@ static int compare(const void *a, const void *b)
 
 static double median(double *values, int n)
 {
-    qsort(values, n, sizeof(double), compare);
+    qsort(values, (size_t)n, sizeof(double), compare);
     return values[n / 2];
 }
 

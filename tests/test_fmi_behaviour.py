@@ -150,6 +150,75 @@ def test_corrupt_or_foreign_state_is_rejected(open_fmu):
     assert simple.do_step(0.0, 0.1) == OK  # the instance is unharmed
 
 
+def _fnv1a64(data: bytes) -> int:
+    value = 1469598103934665603
+    for byte in data:
+        value = ((value ^ byte) * 1099511628211) % 2 ** 64
+    return value
+
+
+def _forged(serialized: bytes, vr: int, value: float) -> bytes:
+    """A serialized state with one Real variable replaced and a valid checksum (the layout: 64 header
+    bytes, then time, last successful time and the Real variables by value reference)."""
+    import struct
+    data = bytearray(serialized)
+    struct.pack_into("<d", data, 64 + 16 + 8 * vr, value)
+    struct.pack_into("<Q", data, len(data) - 8, _fnv1a64(bytes(data[:-8])))
+    return bytes(data)
+
+
+@pytest.mark.parametrize("name,value,words", [("L", -1.0, "[1e-09, inf]"), ("m", 0.0, "[1e-09, inf]"),
+                                              ("h", -1.0, "[1e-09, inf]"), ("phi", math.inf, "not a finite number"),
+                                              ("F_x", math.nan, "not a finite number")])
+def test_a_restored_state_passes_the_setters_checks(open_fmu, name, value, words):
+    """A state with a valid checksum whose values break the variables' ranges is refused, by
+    fmi2DeSerializeFMUstate with the variable, its value and its range; the instance steps on unharmed."""
+    fmu = open_fmu("SimplePendulum")
+    fmu.initialize()
+    serialized = fmu.serialize(fmu.get_state())
+    assert fmu.deserialize(_forged(serialized, fmu.reference("g"), 9.81)) is not None  # the forgery itself is sound
+    with pytest.raises(Exception):
+        fmu.deserialize(_forged(serialized, fmu.reference(name), value))
+    message = fmu.last_message()
+    assert message.startswith("fmi2DeSerializeFMUstate") and f"variable {name}" in message and words in message
+    assert fmu.do_step(0.0, 0.1) == OK
+
+
+def test_the_time_must_advance(open_fmu):
+    """At t = 1e9 a step of 1e-8 s is below the time's resolution: refused, not a state moving while the time
+    stays."""
+    fmu = open_fmu("SimplePendulum")
+    fmu.initialize(start_time=1e9)
+    assert fmu.do_step(1e9, 1e-8) == ERROR
+    assert "does not advance the time" in fmu.last_message()
+    assert fmu.do_step(1e9, 1e-3) == OK
+
+
+def test_parameters_and_inputs_read_fine_where_the_outputs_are_undefined(open_fmu):
+    """After a discard (the spring pendulum's mass through its anchor) the parameters, inputs and states
+    still read with fmi2OK; the outputs say fmi2Discard."""
+    fmu = open_fmu("SpringPendulum")
+    fmu.initialize(solver="rk4", h=0.001, phi=0.0, eps=-0.5, v_eps=-3.0, g=0.0, D=1e-6)
+    assert fmu.do_step(0.0, 1.0) == DISCARD
+    import ctypes
+    values = (ctypes.c_double * 3)()
+    read = fmu.call("fmi2GetReal", (ctypes.c_uint * 3)(*[fmu.reference(n) for n in ("m", "F_x", "eps")]), 3, values)
+    assert read == OK and values[0] > 0
+
+
+def test_non_finite_output_derivatives_are_a_discard(open_fmu):
+    """The Spring with its ends almost together and a large velocity: its force's rate is 0 times infinity;
+    the call says so instead of handing out NaN."""
+    import ctypes
+    fmu = open_fmu("Spring")
+    fmu.initialize(l0=0.0, b_x=1e-300, b_vy=1e300)
+    out = (ctypes.c_double * 1)(12345.0)
+    status = fmu.call("fmi2GetRealOutputDerivatives", (ctypes.c_uint * 1)(fmu.reference("Fa_x")), 1,
+                      (ctypes.c_int * 1)(1), out)
+    assert status == DISCARD and out[0] == 12345.0
+    assert "derivative of Fa_x" in fmu.last_message() and "not finite" in fmu.last_message()
+
+
 # ---------------------------------------------------------------- failure
 
 @pytest.mark.parametrize("name,values,method", [
@@ -271,10 +340,39 @@ def test_start_values_with_non_finite_outputs_are_refused(open_fmu):
     assert "non-finite" in fmu.last_message()
 
 
-def test_too_many_substeps_is_an_error_not_a_hang(open_fmu):
+WORK_BOUND = 10_000_000  # right-hand-side evaluations per fmi2DoStep, as the model description says
+
+
+@pytest.mark.parametrize("solver", ["euler", "rk4", "nystrom5", "ab6"])
+def test_a_fixed_step_call_past_the_work_bound_is_refused_at_once(open_fmu, solver):
+    """One evaluation past the bound is refused before any work (the counter does not move); at the
+    bound the step is taken."""
+    stages = {"euler": 1, "rk4": 4, "nystrom5": 6, "ab6": 1}[solver]
     fmu = open_fmu("SimplePendulum")
-    fmu.initialize(h=1e-9)
-    assert fmu.do_step(0.0, 1e3) == ERROR and "substeps" in fmu.last_message()
+    substeps = WORK_BOUND // stages
+    fmu.initialize(solver=solver, h=1e-3)
+    assert fmu.do_step(0.0, 1e-3 * (substeps + 1)) == ERROR
+    message = fmu.last_message()
+    assert f"needs {stages * (substeps + 1):.3g} right-hand-side evaluations" in message
+    assert "allowed at most 10000000 per call" in message and solver in message
+    assert fmu.get("n_rhs")[0] == 0
+    h = next(v for v in fmu.model_description.modelVariables if v.name == "h")
+    assert "at most 1e7 times" in h.description
+
+
+def test_rkf45_stops_at_the_work_bound_with_a_discard(open_fmu):
+    """A long step at the tightest tolerance: fmi2Discard after at most the bound's evaluations, at a
+    last successful time that the state and the status report agree on; the master can go on from there."""
+    fmu = open_fmu("SimplePendulum")
+    fmu.initialize(solver="rkf45", tol=1e-14)
+    assert fmu.do_step(0.0, 1e7) == DISCARD
+    assert "used its 10000000 right-hand-side evaluations allowed per call" in fmu.last_message()
+    n_rhs = fmu.get("n_rhs")[0]
+    assert WORK_BOUND - 7 <= n_rhs <= WORK_BOUND
+    reached = fmu.last_successful_time()
+    assert 0.0 < reached < 1e7
+    phi, omega = fmu.get("phi", "omega")
+    assert math.isfinite(phi) and math.isfinite(omega)
 
 
 def test_wrong_guid_and_type_at_instantiation(fmu_paths, unzipped):
@@ -345,10 +443,15 @@ def test_spring_at_zero_length(open_fmu):
     zero_rest = open_fmu("Spring")
     zero_rest.initialize(l0=0.0, b_x=0.0, c=3.0)
     assert zero_rest.do_step(0.0, 0.1) == OK and zero_rest.get("Fa_x", "Fa_y") == [0.0, 0.0]
-    pre_stressed = open_fmu("Spring")
-    pre_stressed.initialize(b_x=0.0, b_vx=0.0)
-    assert pre_stressed.do_step(0.0, 0.1) == DISCARD
-    assert "singular" in pre_stressed.last_message()
+    pre_stressed = open_fmu("Spring")  # l0 = 1 m: at r = 0 its direction is undefined
+    assert pre_stressed.set(b_x=0.0) == OK
+    assert pre_stressed.call("fmi2EnterInitializationMode") == OK
+    assert pre_stressed.call("fmi2ExitInitializationMode") == ERROR  # refused like a singular pendulum
+    assert "singular configuration" in pre_stressed.last_message()
+    closing = open_fmu("Spring")  # its ends meet at the end of the step
+    closing.initialize(b_x=0.05, b_vx=-0.5)
+    assert closing.do_step(0.0, 0.1) == DISCARD
+    assert "singular" in closing.last_message()
 
 
 # ---------------------------------------------------------------- closed-form linear model

@@ -107,6 +107,49 @@ def test_sources_rebuild_with_fmpy(fmu_paths, unzipped, tmp_path, name):
     assert np.allclose(rebuilt.values, original.values, rtol=1e-12, atol=1e-12)
 
 
+def _plain_build(unzipped_folder: str, name: str, target: Path) -> Path:
+    """The binary an importer gets from sources/ with a bare compiler call: no project flags (in
+    particular no -fvisibility=hidden), every source file the model description lists."""
+    import xml.etree.ElementTree as ET
+    root = ET.parse(Path(unzipped_folder) / "modelDescription.xml").getroot()
+    sources = [str(Path(unzipped_folder) / "sources" / f.get("name")) for f in root.findall("CoSimulation/SourceFiles/File")]
+    assert sources
+    library = target / f"{name}.so"
+    subprocess.run(["gcc", "-shared", "-fPIC", "-O2", "-Wall", "-Wextra", "-Wsign-conversion", "-Wno-unused-parameter",
+                    "-Werror", "-o", str(library), *sources, "-I", str(Path(unzipped_folder) / "sources"), "-lm"],
+                   check=True, capture_output=True, text=True)
+    return library
+
+
+@pytest.mark.parametrize("name", FMU_NAMES)
+def test_sources_compiled_plainly_keep_internal_names_private(fmu_paths, unzipped, tmp_path, name):
+    """Without the project's build flags too, and warning-free at -Wall -Wextra -Wsign-conversion: only
+    the fmi2 functions are exported."""
+    library = _plain_build(unzipped[name], name, tmp_path)
+    symbols = subprocess.run(["nm", "-D", "--defined-only", str(library)], capture_output=True, text=True,
+                             check=True).stdout.split("\n")
+    exported = [line.split()[-1] for line in symbols if line.strip()]
+    assert all(s.startswith("fmi2") for s in exported), [s for s in exported if not s.startswith("fmi2")]
+
+
+def test_two_plainly_compiled_fmus_in_one_process_with_global_symbols(fmu_paths, unzipped, tmp_path):
+    """Loaded RTLD_GLOBAL one after the other (as some importers do), each FMU still calls its own
+    internals: the double pendulum's outer mass moves as it does from the project's own binary."""
+    import ctypes
+    libraries = {}
+    for name in ("SimplePendulum", "DoublePendulum"):
+        folder = tmp_path / name
+        shutil.copytree(unzipped[name], folder)
+        libraries[name] = _plain_build(str(folder), name, folder / "binaries" / "linux64")
+    handles = [ctypes.CDLL(str(libraries[n]), mode=ctypes.RTLD_GLOBAL) for n in ("SimplePendulum", "DoublePendulum")]
+    assert handles
+    rebuilt = simulate(fmu_paths["DoublePendulum"], 1.0, 0.1, unzipdir=str(tmp_path / "DoublePendulum"))
+    original = simulate(fmu_paths["DoublePendulum"], 1.0, 0.1, unzipdir=unzipped["DoublePendulum"])
+    column = rebuilt.columns.index("x2")
+    assert np.allclose(rebuilt.values[:, column], original.values[:, column], rtol=1e-12, atol=1e-12)
+    assert np.ptp(rebuilt.values[:, column]) > 0.1  # it moves
+
+
 def test_prototypes_match_the_standard_headers(tmp_path):
     """The framework compiles against the FMI standard's own headers (shipped with fmpy) too."""
     headers = Path(fmpy.__file__).parent / "c-code"

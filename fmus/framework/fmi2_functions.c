@@ -351,6 +351,16 @@ fmi2Status fmi2ExitInitializationMode(fmi2Component c)
                       "or non-finite derivatives or outputs");
         return fmi2Error;
     }
+#else
+    {   /* without states, the outputs decide: the same promise as the models with states */
+        double real[N_REAL];
+        memcpy(real, inst->s.real, sizeof real);
+        if (!model_outputs(&inst->constants, inst->s.time, NULL, real) || first_non_finite(real, N_REAL) >= 0) {
+            log_error(inst, "fmi2ExitInitializationMode: the start values of the inputs give a singular configuration "
+                      "or non-finite outputs");
+            return fmi2Error;
+        }
+    }
 #endif
     memset(&inst->s.integrator, 0, sizeof inst->s.integrator); /* counters count from here */
     restart_integrator(inst);
@@ -401,6 +411,23 @@ static const char *kind_of(const VariableInfo *v)
     return "a calculated variable";
 }
 
+/* A finite value within the variable's range; logs and returns 0 otherwise. */
+static int value_in_range(Instance *inst, const char *function, const VariableInfo *v, fmi2ValueReference vr,
+                          double value)
+{
+    if (!isfinite(value)) {
+        log_error(inst, "%s: variable %s (value reference %u) = %g is not a finite number (allowed range [%g, %g])",
+                  function, v->name, vr, value, v->min, v->max);
+        return 0;
+    }
+    if (value < v->min || value > v->max) {
+        log_error(inst, "%s: variable %s (value reference %u) = %.17g is out of its allowed range [%g, %g]", function,
+                  v->name, vr, value, v->min, v->max);
+        return 0;
+    }
+    return 1;
+}
+
 /* Every check a value must pass before it is stored; logs and returns 0 on the first failure. */
 static int value_acceptable(Instance *inst, const char *function, const VariableInfo *v, fmi2ValueReference vr,
                             double value)
@@ -413,17 +440,7 @@ static int value_acceptable(Instance *inst, const char *function, const Variable
                   function, v->name, vr, kind_of(v), state_name(inst->s.machine_state), states);
         return 0;
     }
-    if (!isfinite(value)) {
-        log_error(inst, "%s: variable %s (value reference %u) = %g is not a finite number (allowed range [%g, %g])",
-                  function, v->name, vr, value, v->min, v->max);
-        return 0;
-    }
-    if (value < v->min || value > v->max) {
-        log_error(inst, "%s: variable %s (value reference %u) = %.17g is out of its allowed range [%g, %g]", function,
-                  v->name, vr, value, v->min, v->max);
-        return 0;
-    }
-    return 1;
+    return value_in_range(inst, function, v, vr, value);
 }
 
 /* What follows from a stored value: derived constants, integrator history, cached outputs. */
@@ -469,7 +486,14 @@ fmi2Status fmi2GetReal(fmi2Component c, const fmi2ValueReference vr[], size_t nv
     if (!inst || !arrays_present(inst, "fmi2GetReal", nvr, vr, value)) return fmi2Error;
     for (i = 0; i < nvr; i++)
         if (!real_reference_known(inst, "fmi2GetReal", vr[i])) return fmi2Error;
-    status = ensure_outputs(inst, "fmi2GetReal");
+    /* Parameters, inputs and states hold what was set: reading only those needs no outputs, and stays
+     * fmi2OK where the outputs are undefined. */
+    status = fmi2OK;
+    for (i = 0; i < nvr; i++)
+        if (!settable_in(&REAL_VARIABLES[vr[i]])) {
+            status = ensure_outputs(inst, "fmi2GetReal");
+            break;
+        }
     if (status == fmi2Error) return status;
     /* With fmi2Discard, values that are not finite are not handed out: those entries stay as they were. */
     for (i = 0; i < nvr; i++)
@@ -642,6 +666,51 @@ static int machine_state_fits(const Instance *inst, int32_t state)
     return state != 0 && (state & (state - 1)) == 0 && ((unsigned)state & valid);
 }
 
+/* A restored state passes the setters' checks: every value a user can set (parameters, inputs,
+ * states) finite and in range, the parameters consistent together, and the framework's own numbers
+ * (time, machine state, integrator memory) sane. Logs the first problem. */
+static int restored_state_valid(Instance *inst, const char *function, const SimState *s)
+{
+    char message[256];
+    ModelConst constants;
+    int i;
+    if (!isfinite(s->time) || !isfinite(s->last_successful_time) || !machine_state_fits(inst, s->machine_state)) {
+        log_error(inst, "%s: the FMU state's time %g or machine state %d is invalid", function, s->time,
+                  (int)s->machine_state);
+        return 0;
+    }
+    for (i = 0; i < N_REAL; i++)
+        if (settable_in(&REAL_VARIABLES[i]) && !value_in_range(inst, function, &REAL_VARIABLES[i], (fmi2ValueReference)i,
+                                                               s->real[i]))
+            return 0;
+#if N_INTEGER > 0
+    for (i = 0; i < N_INTEGER; i++)
+        if (INTEGER_VARIABLES[i].causality == CAUSALITY_PARAMETER &&
+            !value_in_range(inst, function, &INTEGER_VARIABLES[i], (fmi2ValueReference)(INTEGER_VR_BASE + i),
+                            s->integer[i]))
+            return 0;
+#endif
+#if N_INPUTS > 0
+    for (i = 0; i < N_INPUTS; i++)
+        if (!isfinite(s->input_derivative[i])) {
+            log_error(inst, "%s: the FMU state's derivative of input %s is not finite", function,
+                      REAL_VARIABLES[INPUT_VRS[i]].name);
+            return 0;
+        }
+#endif
+    if (s->integrator.ab_count < 0 || s->integrator.ab_count > AB_MAX_STEPS || s->integrator.ab_head < 0 ||
+        s->integrator.ab_head >= AB_MAX_STEPS || !isfinite(s->integrator.ab_step) ||
+        !(s->integrator.rkf_proposal >= 0.0) || !isfinite(s->integrator.rkf_proposal)) {
+        log_error(inst, "%s: the FMU state's integrator memory is invalid", function);
+        return 0;
+    }
+    if (model_prepare(s->real, s->integer, &constants, message, sizeof message)) {
+        log_error(inst, "%s: %s", function, message);
+        return 0;
+    }
+    return 1;
+}
+
 fmi2Status fmi2SetFMUstate(fmi2Component c, fmi2FMUstate FMUstate)
 {
     Instance *inst = enter(c, FN_SET_FMU_STATE);
@@ -658,6 +727,7 @@ fmi2Status fmi2SetFMUstate(fmi2Component c, fmi2FMUstate FMUstate)
                   inst->type == fmi2CoSimulation ? "Co-Simulation" : "Model Exchange");
         return fmi2Error;
     }
+    if (!restored_state_valid(inst, "fmi2SetFMUstate", &stored->s)) return fmi2Error;
     inst->s = stored->s;
     /* A restored state is a good state: a failed step is behind it. */
     if (inst->s.machine_state == MS_STEP_FAILED) inst->s.machine_state = MS_STEP_COMPLETE;
@@ -739,25 +809,6 @@ fmi2Status fmi2SerializeFMUstate(fmi2Component c, fmi2FMUstate FMUstate, fmi2Byt
     return fmi2OK;
 }
 
-/* Values inside a deserialized state that the rest of the code relies on. */
-static int restored_state_valid(Instance *inst, const SimState *s)
-{
-    int i;
-    if (!isfinite(s->time) || !machine_state_fits(inst, s->machine_state)) return 0;
-    for (i = 0; i < N_REAL; i++)
-        if (isnan(s->real[i])) return 0;
-#if N_INTEGER > 0
-    for (i = 0; i < N_INTEGER; i++)
-        if (INTEGER_VARIABLES[i].causality == CAUSALITY_PARAMETER &&
-            (s->integer[i] < INTEGER_VARIABLES[i].min || s->integer[i] > INTEGER_VARIABLES[i].max))
-            return 0;
-#endif
-    if (s->integrator.ab_count < 0 || s->integrator.ab_count > AB_MAX_STEPS || s->integrator.ab_head < 0 ||
-        s->integrator.ab_head >= AB_MAX_STEPS)
-        return 0;
-    return 1;
-}
-
 fmi2Status fmi2DeSerializeFMUstate(fmi2Component c, const fmi2Byte serializedState[], size_t size,
                                    fmi2FMUstate *FMUstate)
 {
@@ -788,10 +839,7 @@ fmi2Status fmi2DeSerializeFMUstate(fmi2Component c, const fmi2Byte serializedSta
     decoded.guid[GUID_SLOT - 1] = '\0';
     memcpy(&decoded.s, in + SERIAL_HEADER, sizeof(SimState));
     if (!state_is_ours(inst, "fmi2DeSerializeFMUstate", &decoded)) return fmi2Error;
-    if (!restored_state_valid(inst, &decoded.s)) {
-        log_error(inst, "fmi2DeSerializeFMUstate: the serialized state holds values out of range");
-        return fmi2Error;
-    }
+    if (!restored_state_valid(inst, "fmi2DeSerializeFMUstate", &decoded.s)) return fmi2Error;
     target = (StoredState *)*FMUstate;
     if (target) {
         if (!state_is_ours(inst, "fmi2DeSerializeFMUstate", target)) return fmi2Error;
@@ -1005,6 +1053,13 @@ fmi2Status fmi2GetRealOutputDerivatives(fmi2Component c, const fmi2ValueReferenc
     for (i = 0; i < N_STATES; i++) rate[i] = dx[i];
 #endif
     model_output_rates(&inst->constants, inst->s.time, inst->s.real, dx, inst->s.input_derivative, rate);
+    for (i = 0; i < nvr; i++)
+        if (!isfinite(rate[vr[i]])) { /* in-range values can still overflow (huge parameters, 0 times inf) */
+            log_discard(inst, "fmi2GetRealOutputDerivatives: the derivative of %s (value reference %u) is not finite "
+                        "for the current parameters, inputs and states; no value handed out",
+                        REAL_VARIABLES[vr[i]].name, vr[i]);
+            return fmi2Discard;
+        }
     for (i = 0; i < nvr; i++) value[i] = rate[vr[i]];
     return fmi2OK;
 }
@@ -1024,6 +1079,11 @@ fmi2Status fmi2DoStep(fmi2Component c, fmi2Real currentCommunicationPoint, fmi2R
     }
     if (!(H > 0.0) || !isfinite(H) || !isfinite(t + H)) {
         log_error(inst, "fmi2DoStep: communicationStepSize = %g is not allowed (allowed range (0, inf), finite)", H);
+        return fmi2Error;
+    }
+    if (!(t + H > t)) { /* the state would move while the time stays */
+        log_error(inst, "fmi2DoStep: communicationStepSize = %g does not advance the time from "
+                  "currentCommunicationPoint = %.17g (its resolution there is %g)", H, t, nextafter(t, INFINITY) - t);
         return fmi2Error;
     }
     if (!ensure_constants(inst, "fmi2DoStep")) return fmi2Error;

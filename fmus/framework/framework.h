@@ -10,6 +10,15 @@
 
 #include "fmi2_api.h"
 
+/* Internal names stay private to the binary, also when an importer compiles the sources without the
+ * project's build flags: only the fmi2 functions are exported, so that two FMUs in one process never
+ * call each other's internals. (Windows DLLs export only what is marked for export anyway.) */
+#if defined(__GNUC__) && !defined(_WIN32) && !defined(__CYGWIN__)
+#define INTERNAL __attribute__((visibility("hidden")))
+#else
+#define INTERNAL
+#endif
+
 typedef enum {
     CAUSALITY_PARAMETER, CAUSALITY_CALCULATED_PARAMETER, CAUSALITY_INPUT, CAUSALITY_OUTPUT,
     CAUSALITY_LOCAL, CAUSALITY_INDEPENDENT
@@ -86,22 +95,22 @@ typedef struct {
 } Instance;
 
 /* instance.c. Logging: errors and discards are always reported; the rest only with debug logging on. */
-void log_error(Instance *inst, const char *fmt, ...);
-void log_discard(Instance *inst, const char *fmt, ...);
-void log_debug(Instance *inst, const char *fmt, ...);
+INTERNAL void log_error(Instance *inst, const char *fmt, ...);
+INTERNAL void log_discard(Instance *inst, const char *fmt, ...);
+INTERNAL void log_debug(Instance *inst, const char *fmt, ...);
 
 /* Index of the first non-finite value among n, or -1 when all are finite. */
-int first_non_finite(const double *values, int n);
+INTERNAL int first_non_finite(const double *values, int n);
 
 /* The current inputs, gathered into a contiguous array. */
-void gather_inputs(const Instance *inst, double *u);
+INTERNAL void gather_inputs(const Instance *inst, double *u);
 
 /* stepper.c: fmi2DoStep's integration from s.time to t + H. */
-fmi2Status step_to(Instance *inst, double t, double H);
-void restart_integrator(Instance *inst);
+INTERNAL fmi2Status step_to(Instance *inst, double t, double H);
+INTERNAL void restart_integrator(Instance *inst);
 #if N_STATES > 0
 /* States x (of the Instance context) are finite and regular, with finite derivatives and outputs. */
-int state_acceptable(const void *context, double t, const double *x);
+INTERNAL int state_acceptable(const void *context, double t, const double *x);
 #endif
 
 /* ---- implemented by each model: physics.h defines ModelConst and, for a model with states,
@@ -114,27 +123,27 @@ int state_acceptable(const void *context, double t, const double *x);
 
 /* Derived constants from the parameters (after initialization and after a tunable change); returns
  * 0, or 1 with a message when the parameters together are inconsistent. */
-int model_prepare(const double *real, const int32_t *integer, ModelConst *c, char *message, size_t size);
+INTERNAL int model_prepare(const double *real, const int32_t *integer, ModelConst *c, char *message, size_t size);
 #if N_STATES > 0
 /* 0 when x is non-finite or a singular configuration. */
-int model_state_ok(const ModelConst *c, const double *x);
+INTERNAL int model_state_ok(const ModelConst *c, const double *x);
 /* Says why the derivatives at (t, x) are undefined (a requirement of the object or the mass matrix);
  * returns 0 when it finds no reason. */
-int model_explain_singularity(const ModelConst *c, double t, const double *x, char *message, size_t size);
+INTERNAL int model_explain_singularity(const ModelConst *c, double t, const double *x, char *message, size_t size);
 /* Closed-form step over H with inputs u held; returns 0 when the model has none in this configuration. */
-int model_closed_form_step(const ModelConst *c, double H, const double *u, double *x);
+INTERNAL int model_closed_form_step(const ModelConst *c, double H, const double *u, double *x);
 #endif
 /* Write all calculated outputs into real[] at time t, from the states and inputs already in real[]
  * (and the state derivatives dx, NULL for a model without states); returns 0 at a singular
  * configuration. */
-int model_outputs(const ModelConst *c, double t, const double *dx, double *real);
+INTERNAL int model_outputs(const ModelConst *c, double t, const double *dx, double *real);
 /* rate[vr] = exact time derivative of every Real output vr; du are the input derivatives. */
-void model_output_rates(const ModelConst *c, double t, const double *real, const double *dx, const double *du,
+INTERNAL void model_output_rates(const ModelConst *c, double t, const double *real, const double *dx, const double *du,
                         double *rate);
 /* Advance the inputs over a step of H using their derivatives (and, for positions, velocities). */
-void model_advance_inputs(double *real, const double *du, double H);
+INTERNAL void model_advance_inputs(double *real, const double *du, double H);
 
 /* Default for model_advance_inputs (instance.c): each input moves with its own first derivative. */
-void advance_inputs_linearly(double *real, const double *du, double H);
+INTERNAL void advance_inputs_linearly(double *real, const double *du, double H);
 
 #endif

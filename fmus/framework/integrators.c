@@ -242,6 +242,12 @@ const char *solver_name(int solver)
     return tab ? tab->name : ab ? ab->name : "unknown solver";
 }
 
+int evaluations_per_step(int solver)
+{
+    const ButcherTableau *tab = tableau_of(solver);
+    return tab ? tab->stages : 1; /* an Adams-Bashforth step: one evaluation (its start is a few more) */
+}
+
 /* One case per method, each with a constant tableau, so that each loop is compiled for its own
  * coefficients (and, inlined per forces mode, for its inputs). Returns -1 for an unknown solver. */
 ENGINE_INLINE int64_t fixed_loop(RightHandSide *f, int mode, int solver, IntegratorMemory *memory, double *x,
@@ -293,6 +299,7 @@ double integrate_adaptive(RightHandSide *f, IntegratorMemory *memory, double *x,
         const double step = last ? remaining : h;
         double norm = 0.0, factor;
         int accept;
+        if (f->evaluations + (uint64_t)TABLEAU_RKF45.stages > f->budget) break; /* the work bound per call */
         if (!have_f0) {
             evaluate(&e, mode, t, x, f0);
             f->evaluations++;
@@ -300,7 +307,7 @@ double integrate_adaptive(RightHandSide *f, IntegratorMemory *memory, double *x,
         }
         memcpy(y, x, sizeof y);
         runge_kutta_step(&e, mode, &TABLEAU_RKF45, t, step, y, f0, err);
-        f->evaluations += TABLEAU_RKF45.stages - 1;
+        f->evaluations += (uint64_t)(TABLEAU_RKF45.stages - 1);
         for (i = 0; i < N_STATES; i++) {
             const double scaled = err[i] / (tol * (1.0 + fabs(x[i])));
             norm += scaled * scaled;

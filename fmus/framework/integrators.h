@@ -29,9 +29,9 @@ typedef struct {
     const ButcherTableau *starter;    /* Runge-Kutta method of order >= steps - 1 for the first steps */
 } AdamsBashforth;
 
-extern const ButcherTableau TABLEAU_EULER, TABLEAU_MIDPOINT, TABLEAU_HEUN, TABLEAU_RK3, TABLEAU_RK4,
+extern INTERNAL const ButcherTableau TABLEAU_EULER, TABLEAU_MIDPOINT, TABLEAU_HEUN, TABLEAU_RK3, TABLEAU_RK4,
     TABLEAU_NYSTROM5, TABLEAU_RKF45;
-extern const AdamsBashforth AB2, AB3, AB4, AB5, AB6;
+extern INTERNAL const AdamsBashforth AB2, AB3, AB4, AB5, AB6;
 
 /* The right-hand side as the engines see it: the model, and inputs that vary linearly over the
  * communication step, u(t) = u0 + (t - t0) du. Counts its evaluations. */
@@ -43,6 +43,7 @@ typedef struct {
     int inputs_vary;
     int forces; /* some input is not zero or varies: the model computes its force terms */
     uint64_t evaluations;
+    uint64_t budget; /* rkf45 stops before a step that would take evaluations past this */
     /* Whether a state is good enough to continue from (finite, not singular, finite outputs);
      * called only in checking passes, never in the hot loop. */
     int (*acceptable)(const void *context, double t, const double *x);
@@ -53,7 +54,7 @@ typedef struct {
  * t0, substep i starting at t0 + i hs. With check_each, stops before the first substep whose
  * result is not acceptable and leaves x, memory at the last good substep. Returns the number of
  * substeps completed. */
-int64_t integrate_fixed(RightHandSide *f, int solver, IntegratorMemory *memory, double *x, double t0, double hs,
+INTERNAL int64_t integrate_fixed(RightHandSide *f, int solver, IntegratorMemory *memory, double *x, double t0, double hs,
                         int64_t n, int check_each);
 
 /* Fehlberg 4(5) with step-size control from t0 to t_end; starts from memory->rkf_proposal (or
@@ -61,12 +62,14 @@ int64_t integrate_fixed(RightHandSide *f, int solver, IntegratorMemory *memory, 
  * check_each, is not acceptable) is rejected like one with too large an error. Returns the time
  * reached: t_end on success, earlier when the step size underflowed (x is then the last accepted
  * state). */
-double integrate_adaptive(RightHandSide *f, IntegratorMemory *memory, double *x, double t0, double t_end,
+INTERNAL double integrate_adaptive(RightHandSide *f, IntegratorMemory *memory, double *x, double t0, double t_end,
                           double h_initial, double tol, int check_each);
 
 /* The tableau or coefficient set of a solver (NULL where it is the other kind). */
-const ButcherTableau *tableau_of(int solver);
-const AdamsBashforth *adams_bashforth_of(int solver);
-const char *solver_name(int solver);
+INTERNAL const ButcherTableau *tableau_of(int solver);
+INTERNAL const AdamsBashforth *adams_bashforth_of(int solver);
+INTERNAL const char *solver_name(int solver);
+/* Right-hand-side evaluations per step of a fixed-step solver (its stages; 1 for Adams-Bashforth). */
+INTERNAL int evaluations_per_step(int solver);
 
 #endif

@@ -26,14 +26,14 @@ typedef struct {
 
 /* Factorizes and decomposes; returns 0, or 1 with a message when M0 is not positive definite or the
  * rest state is unstable (a negative stiffness eigenvalue). M0, K0 are n x n row-major, B0 n x F. */
-int linear_model_prepare(LinearModel *lm, const double *M0, const double *K0, const double *B0, const double *rest,
+INTERNAL int linear_model_prepare(LinearModel *lm, const double *M0, const double *K0, const double *B0, const double *rest,
                          double U0, char *message, size_t size);
 /* dx = (v, a) of the linear model at x = (q, v); u == NULL means no force. */
-void linear_model_derivatives(const LinearModel *lm, double d, const double *x, const double *u, double *dx);
+INTERNAL void linear_model_derivatives(const LinearModel *lm, double d, const double *x, const double *u, double *dx);
 /* x advanced by H in closed form with the inputs u held (u == NULL: none). */
-void linear_model_step(const LinearModel *lm, double d, double H, const double *u, double *x);
+INTERNAL void linear_model_step(const LinearModel *lm, double d, double H, const double *u, double *x);
 /* The linear model's energies at real[] = (q, v, ...) and their rates (dx = (v, a)); NULL skips one. */
-void linear_model_energies(const LinearModel *lm, const double *real, const double *dx, double *E_kin,
+INTERNAL void linear_model_energies(const LinearModel *lm, const double *real, const double *dx, double *E_kin,
                            double *E_pot, double *rate_kin, double *rate_pot);
 #endif
 

@@ -6,8 +6,6 @@
 
 #include "integrators.h"
 
-/* A master asking for more substeps than this in one call has almost surely mixed up units. */
-#define MAX_SUBSTEPS 1000000000.0
 
 /* Forgets the Adams-Bashforth history and the rkf45 step proposal: after a reset, or when solver,
  * h or tol change. */
@@ -122,6 +120,7 @@ fmi2Status step_to(Instance *inst, double t, double H)
     if (f.inputs_vary) f.forces = 1;
     f.t0 = t;
     f.evaluations = 0;
+    f.budget = (uint64_t)MAX_EVALUATIONS_PER_CALL;
     f.acceptable = state_acceptable;
     f.context = inst;
 
@@ -147,6 +146,7 @@ fmi2Status step_to(Instance *inst, double t, double H)
         if (!evaluate_at(inst, reached, x, checked)) { /* outputs overflowed although the state stayed finite: redo, checking */
             memcpy(x, x_start, sizeof x_start);
             *memory = memory_start;
+            f.budget += f.evaluations; /* the checking pass gets a budget of its own */
             reached = integrate_adaptive(&f, memory, x, t, t_end, h, s->real[VR_tol], 1);
         } else if (reached == t_end) {
             memory->n_rhs += f.evaluations;
@@ -155,9 +155,15 @@ fmi2Status step_to(Instance *inst, double t, double H)
         memory->n_rhs += f.evaluations;
         if (reached < t_end) {
             finish(inst, t, reached - t, reached);
-            log_discard(inst, "fmi2DoStep: rkf45 with tol = %g: the step size underflowed at t = %.17g (the state "
-                        "is non-finite, singular or too stiff there); stopped at the last successful time %.17g",
-                        s->real[VR_tol], reached, reached);
+            if (f.evaluations + (uint64_t)TABLEAU_RKF45.stages > f.budget)
+                log_discard(inst, "fmi2DoStep: rkf45 with tol = %g used its %.0f right-hand-side evaluations "
+                            "allowed per call at t = %.17g; stopped at the last successful time %.17g (take shorter "
+                            "communication steps or a larger tol)", s->real[VR_tol], MAX_EVALUATIONS_PER_CALL,
+                            reached, reached);
+            else
+                log_discard(inst, "fmi2DoStep: rkf45 with tol = %g: the step size underflowed at t = %.17g (the "
+                            "state is non-finite, singular or too stiff there); stopped at the last successful "
+                            "time %.17g", s->real[VR_tol], reached, reached);
             return fmi2Discard;
         }
         return finish(inst, t, H, t_end);
@@ -167,9 +173,11 @@ fmi2Status step_to(Instance *inst, double t, double H)
         double hs;
         double x_start[STATE_SLOTS];
         IntegratorMemory memory_start;
-        if (substeps > MAX_SUBSTEPS) {
-            log_error(inst, "fmi2DoStep: communicationStepSize = %g with h = %g needs %.3g substeps (allowed at most "
-                      "%.0f): raise h or shorten the step", H, h, substeps, MAX_SUBSTEPS);
+        const double work = substeps * evaluations_per_step(solver);
+        if (work > MAX_EVALUATIONS_PER_CALL) {
+            log_error(inst, "fmi2DoStep: communicationStepSize = %g with %s at h = %g needs %.3g right-hand-side "
+                      "evaluations (allowed at most %.0f per call): raise h or shorten the step", H, method, h, work,
+                      MAX_EVALUATIONS_PER_CALL);
             return fmi2Error;
         }
         n = substeps < 1.0 ? 1 : (int64_t)substeps;

@@ -20,7 +20,7 @@ import sympy as sp
 from sympy.printing.c import C99CodePrinter
 
 from harness.objects.derivation import Derivation, total_derivative
-from harness.objects.object_file import FRAMEWORK_PARAMETERS
+from harness.objects.object_file import FRAMEWORK_PARAMETERS, MAX_EVALUATIONS_PER_CALL
 
 
 class _Printer(C99CodePrinter):
@@ -260,6 +260,7 @@ def generate_c(derivation: Derivation) -> GeneratedC:
 
     header = _HEADER.format(
         identifier=spec.identifier, n=n, nf=nf, has_linear=1 if has_linear else 0,
+        max_evaluations=MAX_EVALUATIONS_PER_CALL,
         parameter_fields="".join(f" p_{p.name}," for p in parameters).rstrip(","),
         n_constants=max(1, len(constants.definitions)),
         factor_fields="".join(f"    double {name};\n" for name in factor_constants),
@@ -439,6 +440,7 @@ _HEADER = """/* {identifier}: generated from modelDescription/{file} by harness.
 #define N_COORDINATES {n}
 #define N_FORCE_INPUTS {nf}
 #define HAS_LINEAR_MODEL {has_linear}
+#define MAX_EVALUATIONS_PER_CALL {max_evaluations}.0 /* right-hand sides per fmi2DoStep */
 #include "linear_model.h"
 
 /* Parameters (p_), the damping d and parameter-only subexpressions (k), set by model_prepare. */
