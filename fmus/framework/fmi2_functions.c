@@ -666,7 +666,7 @@ static int machine_state_fits(const Instance *inst, int32_t state)
     return state != 0 && (state & (state - 1)) == 0 && ((unsigned)state & valid);
 }
 
-/* A restored state passes the setters' checks: every value a user can set (parameters, inputs,
+/* A deserialized state passes the setters' checks: every value a user can set (parameters, inputs,
  * states) finite and in range, the parameters consistent together, and the framework's own numbers
  * (time, machine state, integrator memory) sane. Logs the first problem. */
 static int restored_state_valid(Instance *inst, const char *function, const SimState *s)
@@ -727,7 +727,8 @@ fmi2Status fmi2SetFMUstate(fmi2Component c, fmi2FMUstate FMUstate)
                   inst->type == fmi2CoSimulation ? "Co-Simulation" : "Model Exchange");
         return fmi2Error;
     }
-    if (!restored_state_valid(inst, "fmi2SetFMUstate", &stored->s)) return fmi2Error;
+    /* An in-memory state was made by this FMU's fmi2GetFMUstate from checked values: no second check here,
+     * where masters roll back every iteration (a deserialized one is checked, it comes from outside). */
     inst->s = stored->s;
     /* A restored state is a good state: a failed step is behind it. */
     if (inst->s.machine_state == MS_STEP_FAILED) inst->s.machine_state = MS_STEP_COMPLETE;
