@@ -18,6 +18,7 @@ from __future__ import annotations
 import argparse
 import statistics
 import sys
+import tempfile
 import time
 from pathlib import Path
 
@@ -40,6 +41,9 @@ TARGET, STOP = 1e-6, 10.0
 FIXED_METHODS = ("rk4", "nystrom5", "ab4", "ab5", "ab6")
 METHOD_CODES = {"rk4": 5, "nystrom5": 7, "ab4": 10, "ab5": 11, "ab6": 12}
 
+
+# extracted FMUs: removed with this folder when the benchmark exits
+SCRATCH = tempfile.TemporaryDirectory(prefix="benchmark_")
 
 def exact_positions(grid: np.ndarray) -> np.ndarray:
     phi, _ = exact_simple_pendulum(0.5, grid)
@@ -98,7 +102,8 @@ def fmpy_list_api(fmu: Path, grid: np.ndarray, method: str, h: float):
     """What an fmpy user writes: FMU2Slave with lists, one doStep and getReal per output point."""
     description = read_model_description(str(fmu))
     refs = {v.name: v.valueReference for v in description.modelVariables}
-    slave = FMU2Slave(guid=description.guid, unzipDirectory=extract(str(fmu)), modelIdentifier="SimplePendulum",
+    unzipped = extract(str(fmu), unzipdir=tempfile.mkdtemp(dir=SCRATCH.name))
+    slave = FMU2Slave(guid=description.guid, unzipDirectory=unzipped, modelIdentifier="SimplePendulum",
                       instanceName="list-api")
     slave.instantiate()
     xy = [refs["x"], refs["y"]]
@@ -135,7 +140,7 @@ def main() -> None:
     build_fmus()
     fmu = build_dir() / "fmus" / "SimplePendulum.fmu"
     pendulum = Pendulum.from_fmu(fmu)
-    unzipped = extract(str(fmu))
+    unzipped = extract(str(fmu), unzipdir=tempfile.mkdtemp(dir=SCRATCH.name))
     description = read_model_description(str(fmu))
     print(f"SimplePendulum, 10 s, target: largest bob position error <= {TARGET:g} m at every output point")
     print(f"{'output step':>11} | {'FMU method, h':>20} {'evals':>6} | {'DOP853 rtol':>11} {'evals':>6} | "

@@ -8,6 +8,7 @@ import argparse
 import statistics
 import subprocess
 import sys
+import tempfile
 import time
 from pathlib import Path
 
@@ -25,6 +26,9 @@ STEP = 0.001
 SCENE = ROOT / "scenes" / "coupled_pendulums.json"
 
 
+# extracted FMUs: removed with this folder when the benchmark exits
+SCRATCH = tempfile.TemporaryDirectory(prefix="benchmark_")
+
 def harness_cost(steps: int, algorithm: str, extrapolation: str) -> float:
     system = load_system(SCENE)
     with Master(system, MasterOptions(stop=steps * STEP, step=STEP, algorithm=algorithm,
@@ -38,7 +42,7 @@ def plain_fmpy_cost(steps: int) -> float:
     """What an fmpy user writes by hand: FMU2Slave, setReal/getReal with lists, Jacobi, inputs held."""
     paths = {"spring": build_dir() / "fmus" / "Spring.fmu", "pendulum": build_dir() / "fmus" / "SimplePendulum.fmu"}
     descriptions = {k: read_model_description(str(p)) for k, p in paths.items()}
-    unzipped = {k: extract(str(p)) for k, p in paths.items()}
+    unzipped = {k: extract(str(p), unzipdir=tempfile.mkdtemp(dir=SCRATCH.name)) for k, p in paths.items()}
     vr = {k: {v.name: v.valueReference for v in md.modelVariables} for k, md in descriptions.items()}
     slaves = {}
     for name, kind in (("spring", "spring"), ("left", "pendulum"), ("right", "pendulum")):

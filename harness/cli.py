@@ -13,33 +13,63 @@ def _parse_assignment(text: str) -> tuple[str, object]:
     name, sep, value = text.partition("=")
     if not sep or not name:
         raise HarnessError(f"--set expects NAME=VALUE, got {text!r}")
+    return name, value  # read by the FMU's variable type: a number, or an enumeration item such as ab4
+
+
+def positive_number(text: str) -> float:
     try:
-        return name, float(value)
+        value = float(text)
     except ValueError:
-        return name, value  # an enumeration item such as solver=ab4
+        raise argparse.ArgumentTypeError(f"{text!r} is not a number") from None
+    if not (math.isfinite(value) and value > 0):
+        raise argparse.ArgumentTypeError(f"{text!r} must be a positive finite number")
+    return value
+
+
+def count(largest: int):
+    def parse(text: str) -> int:
+        try:
+            value = int(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"{text!r} is not a whole number") from None
+        if not 1 <= value <= largest:
+            raise argparse.ArgumentTypeError(f"{value} must be between 1 and {largest}")
+        return value
+    parse.__name__ = "count"
+    return parse
+
+
+class OneLineParser(argparse.ArgumentParser):
+    """argparse, with its usage errors as one line and exit code 2 (help stays as it is)."""
+
+    def error(self, message: str):
+        self.exit(2, f"harness: error: {message} (see {self.prog} --help)\n")
 
 
 def command_simulate(args: argparse.Namespace) -> int:
     from harness.fmi.fmus import locate_fmu
     from harness.fmi.simulation import simulate
+    from harness.output import output_file
+    out = output_file(args.out, "--out", (args.fmu,))
+    plot = output_file(args.plot, "--plot", (args.fmu, out)) if args.plot else None
     start_values = dict(_parse_assignment(a) for a in args.set)
     if args.solver:
         start_values["solver"] = args.solver
     if args.h is not None:
         start_values["h"] = args.h
     result = simulate(locate_fmu(args.fmu), stop_time=args.stop, step=args.step, start_values=start_values)
-    out = Path(args.out)
-    out.parent.mkdir(parents=True, exist_ok=True)
     result.write_csv(out)
     print(f"wrote {out} ({len(result.values)} rows)")
-    if args.plot:
+    if result.interrupted:
+        raise KeyboardInterrupt
+    if plot:
         from harness.scene.traces import draw_traces
         pairs = [(x, y) for x, y in (("x", "y"), ("x1", "y1"), ("x2", "y2")) if x in result.columns]
         if pairs:
-            draw_traces([(result.fmu, result, pairs, (0.0, 0.0))], args.plot)
-            print(f"wrote {args.plot}")
+            draw_traces([(result.fmu, result, pairs, (0.0, 0.0))], plot)
+            print(f"wrote {plot}")
     if result.discarded_at is not None:
-        print(f"stopped at t = {result.discarded_at}: {result.messages[-1] if result.messages else ''}",
+        print(f"harness: stopped at t = {result.discarded_at}: {result.messages[-1] if result.messages else ''}",
               file=sys.stderr)
         return 1
     return 0
@@ -47,14 +77,16 @@ def command_simulate(args: argparse.Namespace) -> int:
 
 def command_derive(args: argparse.Namespace) -> int:
     from harness.objects.build import derive_fmu
-    derived = derive_fmu(args.object_file, args.out)
+    from harness.output import output_folder
+    derived = derive_fmu(args.object_file, output_folder(args.out, "--out"))
     print(f"wrote {derived.path}")
     return 0
 
 
 def command_demo(args: argparse.Namespace) -> int:
+    from harness.output import output_folder
     from harness.scene.report import run_demo
-    report, index = run_demo(Path(args.out), args.duration)
+    report, index = run_demo(output_folder(args.out, "--out"), args.duration)
     print(f"wrote {index}: {'all verdicts pass' if report.passed else 'some verdicts fail'}")
     return 0 if report.passed else 1
 
@@ -62,27 +94,22 @@ def command_demo(args: argparse.Namespace) -> int:
 def command_run(args: argparse.Namespace) -> int:
     from harness.cosim.master import Master, MasterOptions
     from harness.cosim.system import load_system
-    system = load_system(args.system)
-    stop = args.stop if args.stop is not None else system.stop
-    step = args.step if args.step is not None else system.step
-    if stop is None or step is None:
-        raise HarnessError(f"{args.system} defines no stop time or step: give --stop and --step")
-    options = MasterOptions(stop=stop, step=step, algorithm=args.algorithm, extrapolation=args.extrapolation,
-                            on_discard=args.on_discard, progress=not args.quiet, iterate_tol=args.iterate,
-                            tolerance=args.tolerance)
-    out = Path(args.out)
-    out.parent.mkdir(parents=True, exist_ok=True)
-    with Master(system, options) as master, out.open("w") as stream:
-        header_written = False
+    from harness.output import output_file, written
+    out = output_file(args.out, "--out", (args.system,))
+    with load_system(args.system) as system:
+        stop = args.stop if args.stop is not None else system.stop
+        step = args.step if args.step is not None else system.step
+        if stop is None or step is None:
+            raise HarnessError(f"{args.system} defines no stop time or step: give --stop and --step")
+        options = MasterOptions(stop=stop, step=step, algorithm=args.algorithm, extrapolation=args.extrapolation,
+                                on_discard=args.on_discard, progress=not args.quiet, iterate_tol=args.iterate,
+                                tolerance=args.tolerance)
+        with Master(system, options) as master, written(out, ",".join(master.columns) + "\n") as stream:
 
-        def write_row(row) -> None:  # rows go out as they come: a stopped run keeps what it computed
-            nonlocal header_written
-            if not header_written:
-                stream.write(",".join(master.columns) + "\n")
-                header_written = True
-            stream.write(",".join(f"{v:.17g}" for v in row) + "\n")
+            def write_row(row) -> None:  # rows go out as they come: a stopped run keeps what it computed
+                stream.write(",".join(f"{v:.17g}" for v in row) + "\n")
 
-        result = master.run(on_row=write_row)
+            result = master.run(on_row=write_row)
     steps = (f"{result.macro_steps} macro steps chosen by step doubling (rows every {step:g} s)" if args.tolerance
              else f"{result.macro_steps} macro steps of {step:g} s")
     print(f"wrote {out}: {steps}, {args.algorithm}, {args.extrapolation} "
@@ -119,9 +146,9 @@ def command_chart(args: argparse.Namespace) -> int:
     unknown = sorted(set(objects) - set(known))
     if unknown:
         raise HarnessError(f"--objects: {', '.join(unknown)} is not one of {', '.join(known)}")
+    from harness.output import output_folder
+    out = output_folder(args.out, "--out")
     build_fmus()
-    out = Path(args.out)
-    out.mkdir(parents=True, exist_ok=True)
     if args.kind == "work-precision":
         from harness.studies.charts import work_precision_chart
         from harness.studies.work_precision import pareto_front, settings, work_precision, write_csv
@@ -153,9 +180,9 @@ def command_chart(args: argparse.Namespace) -> int:
         from harness.studies.coupling import coupling_sweep, write_csv
         from harness.fmi.fmus import PROJECT_ROOT
         from harness.cosim.system import load_system
-        system = load_system(args.system or PROJECT_ROOT / "scenes" / "coupled_pendulums.json")
-        points = coupling_sweep(system, stop=args.stop, repeats=args.repeats, scheduler=args.scheduler,
-                                workers=args.workers)
+        with load_system(args.system or PROJECT_ROOT / "scenes" / "coupled_pendulums.json") as system:
+            points = coupling_sweep(system, stop=args.stop, repeats=args.repeats, scheduler=args.scheduler,
+                                    workers=args.workers)
         write_csv(points, out / "coupling.csv")
         written = [out / "coupling.csv", *coupling_chart(points, out)]
         for name in dict.fromkeys(p.configuration for p in points):
@@ -169,13 +196,15 @@ def command_plan(args: argparse.Namespace) -> int:
     from harness.fmi.fmus import build_fmus
     from harness.studies.planner import plan_scene, write_plan_csv
     from harness.cosim.system import load_system
+    from harness.output import output_file
+    out = output_file(args.out, "--out", (args.scene,)) if args.out else None
     build_fmus()
-    system = load_system(args.scene)
-    tolerance = args.tolerance
-    if args.pixels is not None:
-        system.accuracy = {"pixels": args.pixels}
-        tolerance = system.tolerance()
-    plans = plan_scene(system, tolerance, args.duration, args.scheduler, args.workers)
+    with load_system(args.scene) as system:
+        tolerance = args.tolerance
+        if args.pixels is not None:
+            system.accuracy = {"pixels": args.pixels}
+            tolerance = system.tolerance()
+        plans = plan_scene(system, tolerance, args.duration, args.scheduler, args.workers)
     tolerance = plans[0].tolerance
     duration = args.duration or system.stop
     print(f"{system.name}: {duration:g} s, tolerance {tolerance:.3g} m at every frame "
@@ -193,24 +222,22 @@ def command_plan(args: argparse.Namespace) -> int:
               f"{p.default_error:20.2e} {p.default_cost:7d}  {verdict}")
     total, default_total = sum(p.cost for p in plans), sum(p.default_cost for p in plans)
     print(f"total cost {total} evaluations against the default's {default_total} ({default_total / total:.2f}x)")
-    if args.out:
-        out = Path(args.out)
-        out.parent.mkdir(parents=True, exist_ok=True)
+    if out:
         write_plan_csv(plans, out)
         print(f"wrote {out}")
     return 0
 
 
 def build_parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(prog="harness", description="Pendulum FMUs: simulate, couple, validate, chart.")
+    parser = OneLineParser(prog="harness", description="Pendulum FMUs: simulate, couple, validate, chart.")
     sub = parser.add_subparsers(dest="command", required=True)
 
     p = sub.add_parser("simulate", help="simulate one FMU, write CSV (and a trace plot)")
     p.add_argument("fmu", help="a .fmu file or one of SimplePendulum, DoublePendulum, SpringPendulum, Spring")
-    p.add_argument("--stop", type=float, default=10.0, help="stop time [s] (default 10)")
-    p.add_argument("--step", type=float, default=0.01, help="communication step [s] (default 0.01)")
+    p.add_argument("--stop", type=positive_number, default=10.0, help="stop time [s] (default 10)")
+    p.add_argument("--step", type=positive_number, default=0.01, help="communication step [s] (default 0.01)")
     p.add_argument("--solver", help="integration method (euler ... ab6; default rk4)")
-    p.add_argument("--h", type=float, help="internal step [s]")
+    p.add_argument("--h", type=positive_number, help="internal step [s]")
     p.add_argument("--set", action="append", default=[], metavar="NAME=VALUE", help="start value or parameter")
     p.add_argument("--out", default="result.csv", help="CSV file to write")
     p.add_argument("--plot", help="PNG file for the trace of the moving mass")
@@ -218,15 +245,15 @@ def build_parser() -> argparse.ArgumentParser:
 
     p = sub.add_parser("run", help="co-simulate a system (SSP .ssp/.ssd/folder or a scene .json), write CSV")
     p.add_argument("system", help="an .ssp archive, an .ssd file, a folder with SystemStructure.ssd, or a scene .json")
-    p.add_argument("--stop", type=float, help="stop time [s] (default: the system's)")
-    p.add_argument("--step", type=float, help="communication step [s] (default: the system's)")
+    p.add_argument("--stop", type=positive_number, help="stop time [s] (default: the system's)")
+    p.add_argument("--step", type=positive_number, help="communication step [s] (default: the system's)")
     p.add_argument("--algorithm", choices=["jacobi", "gauss-seidel"], default="gauss-seidel")
     p.add_argument("--extrapolation", choices=["hold", "linear"], default="linear")
     p.add_argument("--on-discard", choices=["stop", "retry"], default="stop",
                    help="after fmi2Discard: stop, or roll back and retry with halved steps")
-    p.add_argument("--iterate", type=float, metavar="TOL",
+    p.add_argument("--iterate", type=positive_number, metavar="TOL",
                    help="iterate each macro step (rollback through FMU states) until the outputs change by < TOL")
-    p.add_argument("--tolerance", type=float, metavar="TOL",
+    p.add_argument("--tolerance", type=positive_number, metavar="TOL",
                    help="adapt the macro step by step doubling so that the coupling error stays below TOL; "
                         "--step is then the output interval and the largest macro step")
     p.add_argument("--out", default="run.csv", help="CSV file: time and <component>.<output> columns")
@@ -244,22 +271,22 @@ def build_parser() -> argparse.ArgumentParser:
                    "(default: work-precision the three thesis pendulums, stability every object with a linear model)")
     p.add_argument("--quick", action="store_true", help="work-precision and stability: every other step, "
                    "tolerance and damping ratio (a chart in seconds)")
-    p.add_argument("--repeats", type=int, default=3, help="timed repeats per point; the median is kept (default 3)")
+    p.add_argument("--repeats", type=count(1000), default=3, help="timed repeats per point; the median is kept (default 3)")
     p.add_argument("--system", help="coupling: the system (default scenes/coupled_pendulums.json)")
-    p.add_argument("--stop", type=float, help="coupling: simulated time [s] (default: the system's)")
+    p.add_argument("--stop", type=positive_number, help="coupling: simulated time [s] (default: the system's)")
     p.add_argument("--full", action="store_true", help="stability: the full atlas (19 damping ratios instead of 8)")
-    p.add_argument("--workers", type=int, help="parallel worker processes (default: all local cores)")
+    p.add_argument("--workers", type=count(256), help="parallel worker processes (default: all local cores)")
     p.add_argument("--scheduler", metavar="ADDRESS",
                    help="run the sweep on a Dask cluster: 'local' starts one here, HOST:PORT uses a running one")
     p.set_defaults(run=command_chart)
 
     p = sub.add_parser("plan", help="choose model, method and step per object for a scene's accuracy")
     p.add_argument("scene", help="a scene file (.json) with objects, duration and accuracy")
-    p.add_argument("--tolerance", type=float, help="position tolerance [m] (default: the scene's accuracy)")
-    p.add_argument("--pixels", type=float, help="tolerance in pixels, through the scene camera's scale")
-    p.add_argument("--duration", type=float, help="scene duration [s] (default: the scene's stop)")
+    p.add_argument("--tolerance", type=positive_number, help="position tolerance [m] (default: the scene's accuracy)")
+    p.add_argument("--pixels", type=positive_number, help="tolerance in pixels, through the scene camera's scale")
+    p.add_argument("--duration", type=positive_number, help="scene duration [s] (default: the scene's stop)")
     p.add_argument("--out", help="CSV file for the plan")
-    p.add_argument("--workers", type=int, help="parallel worker processes (default: all local cores)")
+    p.add_argument("--workers", type=count(256), help="parallel worker processes (default: all local cores)")
     p.add_argument("--scheduler", metavar="ADDRESS", help="plan on a Dask cluster ('local' or HOST:PORT)")
     p.set_defaults(run=command_plan)
 
@@ -270,19 +297,56 @@ def build_parser() -> argparse.ArgumentParser:
 
     p = sub.add_parser("demo", help="the main job: thesis scene, coupled scene, plan, validation, charts -> DIR/index.html")
     p.add_argument("--out", default="out", help="output folder (default out/)")
-    p.add_argument("--duration", type=float, help="simulated time [s] (default: the scene's, 20)")
+    p.add_argument("--duration", type=positive_number, help="simulated time [s] (default: the scene's, 20)")
     p.set_defaults(run=command_demo)
     return parser
 
 
 def main(argv: list[str] | None = None) -> int:
-    args = build_parser().parse_args(argv)
+    """The error boundary: a user error is one line and exit code 2, a stopped simulation exit code 1
+    (its rows kept), an interrupt (Ctrl-C or SIGTERM) exit code 130 with rows kept and temporary
+    files removed. Anything else is a fault of the harness: one line, exit code 3, and the
+    traceback only with PENDULUM_TRACEBACK=1."""
+    import os
+    import signal
+
+    def terminate(signum, frame):
+        raise KeyboardInterrupt
+    previous = signal.signal(signal.SIGTERM, terminate) if threading_main() else None
     try:
+        try:
+            args = build_parser().parse_args(argv)
+        except SystemExit as stop:  # usage errors (2) and --help (0): returned, as every other outcome
+            return stop.code if isinstance(stop.code, int) else 2
         return args.run(args)
     except HarnessError as error:
-        lines = str(error).strip().splitlines() or ["(no detail)"]
-        print(f"harness: error: {lines[0]}" + (" [...]" if len(lines) > 1 else ""), file=sys.stderr)
-        return 2
+        return _report("error", str(error), 2)
     except KeyboardInterrupt:
         print("harness: interrupted", file=sys.stderr)
         return 130
+    except RecursionError:
+        return _report("error", "input nested too deeply", 2)
+    except MemoryError:
+        return _report("error", "not enough memory for this run (choose a larger step or a shorter time)", 2)
+    except OSError as error:
+        where = f"{error.filename}: " if error.filename else ""
+        return _report("error", f"{where}{error.strerror or error}", 2)
+    except Exception as error:  # a fault of the harness, not of the input: say so in one line
+        if os.environ.get("PENDULUM_TRACEBACK") == "1":
+            raise
+        return _report("internal error", f"{type(error).__name__}: {error} (set PENDULUM_TRACEBACK=1 for the "
+                       "traceback and report it)", 3)
+    finally:
+        if previous is not None:
+            signal.signal(signal.SIGTERM, previous)
+
+
+def threading_main() -> bool:
+    import threading
+    return threading.current_thread() is threading.main_thread()
+
+
+def _report(kind: str, text: str, code: int) -> int:
+    lines = text.strip().splitlines() or ["(no detail)"]
+    print(f"harness: {kind}: {lines[0]}" + (" [...]" if len(lines) > 1 else ""), file=sys.stderr)
+    return code

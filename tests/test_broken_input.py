@@ -2,10 +2,14 @@
 results written so far kept."""
 from __future__ import annotations
 
+import io
 import json
+import os
 import shutil
+import signal
 import subprocess
 import sys
+import time
 import zipfile
 from pathlib import Path
 
@@ -48,7 +52,7 @@ def broken(fmu_paths, tmp_path) -> dict[str, Path]:
     }
 
 
-@pytest.mark.parametrize("case,words", [("corrupt", "not an FMU (not a zip archive)"),
+@pytest.mark.parametrize("case,words", [("corrupt", "not a zip archive"),
                                         ("no binary", "no binary for this platform"),
                                         ("FMI 3.0", "an FMI 3.0 FMU; this harness runs FMI 2.0"),
                                         ("missing", "no such FMU file")])
@@ -109,3 +113,95 @@ def test_a_stopped_run_keeps_its_rows(fmu_paths, tmp_path):
     assert result.returncode == 1 and "could not complete the step" in result.stderr
     rows = out.read_text().splitlines()
     assert rows[0].startswith("time,") and len(rows) > 5
+
+
+# ---- writing results: checked paths, no loss on failure, interrupts keep rows ------------------
+
+def test_a_full_disk_loses_nothing(fmu_paths, tmp_path, monkeypatch):
+    """Writing fails (ENOSPC): one line naming the file, the earlier file as it was, no temporary file."""
+    import errno
+    from harness import output
+    from harness.cli import main
+    out = tmp_path / "result.csv"
+    out.write_text("earlier result\n")
+
+    class FullDisk(io.StringIO):
+        def write(self, text):
+            raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC))
+
+        def close(self):
+            pass
+
+    monkeypatch.setattr(output.os, "fdopen", lambda descriptor, *args, **kwargs: (os.close(descriptor), FullDisk())[1])
+    code = main(["simulate", "SimplePendulum", "--stop", "0.1", "--out", str(out)])
+    assert code == 2 and out.read_text() == "earlier result\n"
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["result.csv"]
+
+
+def test_an_unwritable_folder_is_one_line(fmu_paths, tmp_path, monkeypatch, capsys):
+    """A folder the user may not write to (simulated: root may write anywhere)."""
+    import errno
+    from harness import output
+    from harness.cli import main
+
+    def refused(*args, **kwargs):
+        raise PermissionError(errno.EACCES, os.strerror(errno.EACCES))
+
+    monkeypatch.setattr(output.tempfile, "mkstemp", refused)
+    code = main(["simulate", "SimplePendulum", "--stop", "0.1", "--out", str(tmp_path / "x.csv")])
+    error = capsys.readouterr().err.strip().splitlines()
+    assert code == 2 and len(error) == 1 and "x.csv: cannot write here (Permission denied)" in error[0], error
+
+
+def test_two_runs_writing_one_file_do_not_interleave(fmu_paths, tmp_path):
+    out = tmp_path / "shared.csv"
+    runs = [subprocess.Popen([sys.executable, "-m", "harness", "simulate", "SimplePendulum", "--stop", "20",
+                              "--step", "0.001", "--set", f"phi={phi}", "--out", str(out)],
+                             stdout=subprocess.DEVNULL, stderr=subprocess.PIPE) for phi in (0.5, 0.25)]
+    assert [run.wait() for run in runs] == [0, 0]
+    rows = out.read_text().splitlines()
+    assert len(rows) == 20002 and float(rows[1].split(",")[1]) in (0.5, 0.25)
+    phi0 = rows[1].split(",")[1]
+    assert all(len(row.split(",")) == len(rows[0].split(",")) for row in rows)
+    assert not [p for p in tmp_path.iterdir() if p.name != "shared.csv"]
+    assert phi0 in ("0.5", "0.25")
+
+
+@pytest.mark.parametrize("command,signal_number", [("simulate", signal.SIGINT), ("run", signal.SIGTERM)])
+def test_an_interrupted_run_keeps_its_rows_and_removes_its_temporary_folders(fmu_paths, tmp_path, command,
+                                                                             signal_number):
+    scratch = tmp_path / "scratch"
+    scratch.mkdir()
+    out = tmp_path / "long.csv"
+    args = (["simulate", "SimplePendulum", "--stop", "2000", "--step", "0.001", "--h", "1e-5"] if command == "simulate"
+            else ["run", str(build_dir() / "scenes" / "coupled_pendulums.ssp"), "--stop", "2000", "--step", "0.001",
+                  "--quiet"])
+    process = subprocess.Popen([sys.executable, "-m", "harness", *args, "--out", str(out)],
+                               stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                               env={**os.environ, "TMPDIR": str(scratch)})
+    deadline = time.monotonic() + 60
+    while not list(scratch.iterdir()) and time.monotonic() < deadline:  # its FMUs are extracted: it runs
+        time.sleep(0.05)
+    time.sleep(2.0)
+    process.send_signal(signal_number)
+    stdout, stderr = process.communicate(timeout=60)
+    assert process.returncode == 130 and stderr.strip() == "harness: interrupted", stderr
+    rows = out.read_text().splitlines()
+    assert len(rows) > 10 and all(len(r.split(",")) == len(rows[0].split(",")) for r in rows)
+    assert list(scratch.iterdir()) == []
+    assert [p.name for p in tmp_path.iterdir() if p.name.endswith(".part")] == []
+
+
+def test_the_master_frees_every_fmu_state(fmu_paths):
+    """Iteration, step doubling and retries save FMU states; after the run nothing the FMUs allocated
+    is left (counted through the memory callbacks)."""
+    from harness.cosim.master import Master, MasterOptions
+    from harness.cosim.system import load_system
+    with load_system(PROJECT_ROOT / "scenes" / "coupled_pendulums.json") as system:
+        master = Master(system, MasterOptions(stop=2.0, step=0.1, iterate_tol=1e-8, tolerance=1e-4,
+                                              on_discard="retry"))
+        with master:
+            master.run()
+            held = [unit.instance.log.live_blocks for unit in master.units]
+            assert all(blocks >= 3 for blocks in held), held  # the instance and its two saved states
+        assert [unit.instance.log.live_blocks for unit in master.units] == [0] * len(master.units)

@@ -18,7 +18,7 @@ def harness(*args: str, cwd=None) -> subprocess.CompletedProcess:
     (["simulate", "SimplePendulum", "--solver", "rk9"], "'rk9' is not one of euler"),
     (["simulate", "missing.fmu"], "no such FMU file"),
     (["simulate", "SimplePendulum", "--set", "foo=1"], "no variable 'foo'"),
-    (["simulate", "SimplePendulum", "--step", "-1"], "must be a positive number"),
+    (["simulate", "SimplePendulum", "--step", "-1"], "argument --step: '-1' must be a positive finite number"),
 ])
 def test_user_errors_are_one_line(fmu_paths, tmp_path, args, words):
     result = harness(*args, "--out", str(tmp_path / "x.csv"))
@@ -57,7 +57,7 @@ def test_run_writes_every_output_of_every_component(fmu_paths, tmp_path):
 
 
 @pytest.mark.parametrize("content,words", [
-    ("{not json", "cannot read the scene file"),
+    ("{not json", "not valid JSON (line 1, column 2"),
     ('{"components": {"a": {"fmu": "SimplePendulum"}}, "connections": [["a.x", "a.nothing"]]}', "no input 'nothing'"),
     ('{"components": {"a": {"fmu": "SimplePendulum"}, "b": {"fmu": "SimplePendulum"}}, '
      '"connections": [["a.phi", "b.F_x"]]}', "units differ (rad to N)"),

@@ -6,9 +6,11 @@ from __future__ import annotations
 
 import ctypes.util
 import json
+import os
 import shutil
 import subprocess
 import sys
+import tempfile
 from pathlib import Path
 
 import numpy as np
@@ -24,7 +26,10 @@ MAESTRO = "org.into-cps.maestro:maestro:3.1.1:jar:jar-with-dependencies"
 
 
 def run_peer(script: str, *args: str) -> np.ndarray:
-    result = subprocess.run([sys.executable, str(PEERS / script), *args], capture_output=True, text=True, timeout=300)
+    # Some importers extract into the temporary folder and leave it there: give them one that goes.
+    with tempfile.TemporaryDirectory(prefix="peer_") as scratch:
+        result = subprocess.run([sys.executable, str(PEERS / script), *args], capture_output=True, text=True,
+                                timeout=300, env={**os.environ, "TMPDIR": scratch})
     assert result.returncode == 0, result.stderr[-2000:]
     # libcosim writes its own log lines to stdout too: the rows are the line that holds a JSON array
     line = next(line for line in result.stdout.splitlines() if line.startswith("[["))

@@ -136,4 +136,4 @@ def test_thesis_scene_file_is_the_contract():
 def test_a_tolerance_that_is_not_a_positive_number_is_a_one_line_error(fmu_paths, value, capsys):
     assert main(["plan", str(PROJECT_ROOT / "scenes" / "thesis_scene.json"), "--tolerance", value]) == 2
     err = capsys.readouterr().err
-    assert f"tolerance {float(value)} m: need a positive number" in err and err.count("\n") == 1
+    assert f"argument --tolerance: '{value}' must be a positive finite number" in err and err.count("\n") == 1

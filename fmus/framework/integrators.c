@@ -242,10 +242,17 @@ const char *solver_name(int solver)
     return tab ? tab->name : ab ? ab->name : "unknown solver";
 }
 
-int evaluations_per_step(int solver)
+double evaluations_needed(int solver, int history, double substeps)
 {
     const ButcherTableau *tab = tableau_of(solver);
-    return tab ? tab->stages : 1; /* an Adams-Bashforth step: one evaluation (its start is a few more) */
+    const AdamsBashforth *ab = adams_bashforth_of(solver);
+    double starts;
+    if (tab || !ab) return substeps * (tab ? tab->stages : 1);
+    /* substep i starts with a Runge-Kutta step while history + i + 1 < steps (adams_bashforth_loop) */
+    starts = (double)(ab->steps - 1 - history);
+    if (starts < 0.0) starts = 0.0;
+    if (starts > substeps) starts = substeps;
+    return substeps + starts * (ab->starter->stages - 1);
 }
 
 /* One case per method, each with a constant tableau, so that each loop is compiled for its own

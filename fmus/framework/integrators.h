@@ -69,7 +69,9 @@ INTERNAL double integrate_adaptive(RightHandSide *f, IntegratorMemory *memory, d
 INTERNAL const ButcherTableau *tableau_of(int solver);
 INTERNAL const AdamsBashforth *adams_bashforth_of(int solver);
 INTERNAL const char *solver_name(int solver);
-/* Right-hand-side evaluations per step of a fixed-step solver (its stages; 1 for Adams-Bashforth). */
-INTERNAL int evaluations_per_step(int solver);
+/* Right-hand-side evaluations a fixed-step solver makes in `substeps` steps: its stages per step,
+ * or for Adams-Bashforth one per step plus its Runge-Kutta start where `history` (the points it
+ * keeps) is too short. */
+INTERNAL double evaluations_needed(int solver, int history, double substeps);
 
 #endif

@@ -169,11 +169,14 @@ fmi2Status step_to(Instance *inst, double t, double H)
         return finish(inst, t, H, t_end);
     } else {
         const double substeps = ceil(H / h - 1e-9);
+        const double planned = substeps < 1.0 ? 1.0 : substeps;
         int64_t n, done;
-        double hs;
+        double hs = H / planned;
         double x_start[STATE_SLOTS];
         IntegratorMemory memory_start;
-        const double work = substeps * evaluations_per_step(solver);
+        /* the Adams-Bashforth history survives only if the substep stays the same (below) */
+        const int history = memory->ab_count > 0 && fabs(hs - memory->ab_step) <= 1e-10 * hs ? memory->ab_count : 0;
+        const double work = evaluations_needed(solver, history, planned);
         if (work > MAX_EVALUATIONS_PER_CALL) {
             log_error(inst, "fmi2DoStep: communicationStepSize = %g with %s at h = %g needs %.3g right-hand-side "
                       "evaluations (allowed at most %.0f per call): raise h or shorten the step", H, method, h, work,

@@ -21,7 +21,7 @@ from typing import Callable
 
 import numpy as np
 
-from harness.cosim.system import System
+from harness.cosim.structure import System
 from harness.errors import HarnessError
 from harness.fmi.fmu_instance import DISCARD, ERROR, OK, STATUS_NAMES, FmuInstance
 from harness.fmi.results import TimeTable
@@ -86,6 +86,13 @@ class _Unit:
     def __init__(self, component, system: System):
         self.name = component.name
         self.instance = FmuInstance(component.fmu, name=component.name)
+        try:
+            self._prepare(component, system)
+        except BaseException:
+            self.instance.free()
+            raise
+
+    def _prepare(self, component, system: System) -> None:
         self.start = component.start
         variables = self.instance.model_description.modelVariables
         self.real_outputs = [v.name for v in variables if v.causality == "output" and v.type == "Real"]
@@ -135,6 +142,11 @@ class _Unit:
                                             self.dy_next), "fmi2GetRealOutputDerivatives")
 
     def free(self) -> None:
+        """Releases the saved FMU states, then the instance."""
+        if self.instance.fmu is not None:
+            for state in self.states:
+                if state.value:
+                    self.instance.call("fmi2FreeFMUstate", ctypes.byref(state))
         self.instance.free()
 
 
@@ -147,12 +159,18 @@ class Master:
         if len(set(names)) != len(names):
             raise HarnessError(f"system {system.name!r}: component names must be unique")
         self.units: list[_Unit] = []
-        try:
+        try:  # whatever fails while setting up, the instances made so far are freed
             for component in system.components:
                 self.units.append(_Unit(component, system))
-        except Exception:
+            self._route()
+        except BaseException:
             self.free()
             raise
+        self.iterations = self.unconverged = self.macro_steps = 0
+        self.use_native = True  # the C loop for plain fixed-step runs, when it is built
+        self.h_proposal: float | None = None
+
+    def _route(self) -> None:
         by_name = {u.name: u for u in self.units}
         # For each receiving unit: (source unit, source output indices, input indices), vectorised.
         self.routes: list[list[tuple[_Unit, np.ndarray, np.ndarray]]] = []
@@ -169,9 +187,6 @@ class Master:
                 outs.append(source.real_outputs.index(c.output))
                 ins.append(k)
             self.routes.append([(by_name[s], np.array(o), np.array(i)) for s, (o, i) in grouped.items()])
-        self.iterations = self.unconverged = self.macro_steps = 0
-        self.use_native = True  # the C loop for plain fixed-step runs, when it is built
-        self.h_proposal: float | None = None
 
     @staticmethod
     def _check_units(source: _Unit, output: str, target: _Unit, input_: str, connection) -> None:

@@ -7,16 +7,18 @@ messages kept as a list so that callers can report or assert them.
 from __future__ import annotations
 
 import ctypes
+import math
 import shutil
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
-from fmpy import extract, read_model_description
+from fmpy import read_model_description
 from fmpy.fmi2 import (FMU2Model, FMU2Slave, fmi2CallbackAllocateMemoryTYPE, fmi2CallbackFreeMemoryTYPE,
                        fmi2CallbackFunctions, fmi2CallbackLoggerTYPE, fmi2LastSuccessfulTime)
 from fmpy.fmi1 import calloc, free
 
+from harness.archives import extract_fmu
 from harness.errors import HarnessError
 
 STATUS_NAMES = ("OK", "Warning", "Discard", "Error", "Fatal", "Pending")
@@ -41,16 +43,28 @@ class LogCollector:
     process, so it is not used here: each instance keeps its own log. Messages arrive as the FMU
     formatted them; any printf arguments an FMU passes separately are not expanded."""
     messages: list[LogMessage] = field(default_factory=list)
+    live_blocks: int = 0  # memory blocks the FMU allocated and has not freed yet (its instance, its states)
 
     def __post_init__(self) -> None:
         def log(env, instance_name, status, category, message):
             self.messages.append(LogMessage(status, (category or b"").decode(), (message or b"").decode()))
 
-        self._logger = fmi2CallbackLoggerTYPE(log)  # keep a reference: ctypes callbacks die with it
+        def allocate(count, size):
+            block = calloc(count, size)
+            self.live_blocks += bool(block)
+            return block
+
+        def release(block):
+            self.live_blocks -= bool(block)
+            free(block)
+
+        self._logger = fmi2CallbackLoggerTYPE(log)  # keep references: ctypes callbacks die with them
+        self._allocate = fmi2CallbackAllocateMemoryTYPE(allocate)
+        self._free = fmi2CallbackFreeMemoryTYPE(release)
         self.callbacks = fmi2CallbackFunctions()
         self.callbacks.logger = self._logger
-        self.callbacks.allocateMemory = fmi2CallbackAllocateMemoryTYPE(calloc)
-        self.callbacks.freeMemory = fmi2CallbackFreeMemoryTYPE(free)
+        self.callbacks.allocateMemory = self._allocate
+        self.callbacks.freeMemory = self._free
 
 
 def _first_line(error: Exception) -> str:
@@ -60,17 +74,16 @@ def _first_line(error: Exception) -> str:
 
 def read_fmi2_description(path: Path):
     """fmpy's model description of an FMI 2.0 FMU; a one-line HarnessError for anything else."""
-    import zipfile
     import xml.etree.ElementTree as ET
+    from harness.archives import open_archive, read_member
     if not path.is_file():
         raise HarnessError(f"{path}: no such FMU file")
+    with open_archive(path, str(path)) as archive:
+        if "modelDescription.xml" not in archive.namelist():
+            raise HarnessError(f"{path}: not an FMU (no modelDescription.xml)")
+        text = read_member(archive, "modelDescription.xml", str(path))
     try:
-        with zipfile.ZipFile(path) as archive:
-            version = ET.fromstring(archive.read("modelDescription.xml")).get("fmiVersion")
-    except zipfile.BadZipFile:
-        raise HarnessError(f"{path}: not an FMU (not a zip archive)") from None
-    except KeyError:
-        raise HarnessError(f"{path}: not an FMU (no modelDescription.xml)") from None
+        version = ET.fromstring(text).get("fmiVersion")
     except ET.ParseError as error:
         raise HarnessError(f"{path}: modelDescription.xml is not well-formed XML ({error})") from None
     if version != "2.0":
@@ -79,6 +92,24 @@ def read_fmi2_description(path: Path):
         return read_model_description(str(path))
     except Exception as error:  # fmpy raises plain exceptions for invalid files
         raise HarnessError(f"{path}: invalid modelDescription.xml ({_first_line(error)})") from None
+
+
+def _is_number_text(text: str) -> bool:
+    try:
+        float(text)
+    except ValueError:
+        return False
+    return True
+
+
+def _number(name: str, value) -> float:
+    """A start value as a float: numbers and numeric strings; NaN and infinity pass through, for
+    the FMU's own range check to refuse with its message."""
+    if isinstance(value, (int, float)) and not isinstance(value, bool):
+        return float(value) if not isinstance(value, int) or abs(value) < 2**1023 else math.inf
+    if isinstance(value, str) and _is_number_text(value):
+        return float(value)
+    raise HarnessError(f"{name} = {value!r} is not a number")
 
 
 _GETTER = ctypes.CFUNCTYPE(ctypes.c_int, ctypes.c_void_p, ctypes.c_void_p, ctypes.c_size_t, ctypes.c_void_p)
@@ -111,7 +142,7 @@ class FmuInstance:
         self._items: dict[str, dict[str, int]] = {}
         self.model_description = read_fmi2_description(self.path)
         self._extracted = unzipdir is None  # a folder this instance made, and removes when freed
-        self.unzipdir = unzipdir or extract(str(self.path))
+        self.unzipdir = unzipdir or str(extract_fmu(self.path))
         try:
             self._load(kind, name, logging_on)
         except BaseException:
@@ -155,19 +186,26 @@ class FmuInstance:
         return items
 
     def _encode(self, name: str, value) -> tuple[str, int | float]:
+        """The value as the FMI type of the variable: a number for a Real (a numeric string is read),
+        an integer in the 32-bit range for an Integer or Enumeration (an enumeration also by item
+        name). Anything else is a HarnessError naming the variable, never a silent conversion."""
         variable = self.variables.get(name)
         if variable is None:
             raise HarnessError(f"{self.path.name} has no variable {name!r}")
-        if variable.type == "Enumeration":
-            if isinstance(value, str):
-                items = self._enumeration_items(variable)
-                if value not in items:
-                    raise HarnessError(f"{name} = {value!r} is not one of {', '.join(items)}")
-                value = items[value]
-            return "Integer", int(value)
-        if variable.type in ("Integer", "Boolean"):
-            return variable.type, int(value)
-        return "Real", float(value)
+        if variable.type == "Enumeration" and isinstance(value, str):
+            items = self._enumeration_items(variable)
+            if value in items:
+                return "Integer", items[value]
+            if not _is_number_text(value):
+                raise HarnessError(f"{name} = {value!r} is not one of {', '.join(items)}")
+        number = _number(name, value)
+        if variable.type == "Real":
+            return "Real", number
+        if not math.isfinite(number) or number != int(number):
+            raise HarnessError(f"{name} = {value!r} is not an integer ({variable.type})")
+        if not -2**31 <= number < 2**31:
+            raise HarnessError(f"{name} = {value!r} is outside the 32-bit integer range of an FMI {variable.type}")
+        return ("Boolean" if variable.type == "Boolean" else "Integer"), int(number)
 
     def set(self, **values) -> int:
         """Sets variables by name; returns the worst fmi2Status."""
@@ -178,6 +216,8 @@ class FmuInstance:
             vr = ctypes.c_uint(self.reference(name))
             if kind == "Real":
                 status = raw.set_real(raw.component, ctypes.byref(vr), 1, ctypes.byref(ctypes.c_double(encoded)))
+            elif kind == "Boolean":
+                status = self.call("fmi2SetBoolean", ctypes.byref(vr), 1, ctypes.byref(ctypes.c_int(encoded)))
             else:
                 status = raw.set_integer(raw.component, ctypes.byref(vr), 1, ctypes.byref(ctypes.c_int(encoded)))
             worst = max(worst, status)

@@ -23,4 +23,8 @@ class TimeTable:
         return self.values[:, 0]
 
     def write_csv(self, path: str | Path) -> None:
-        np.savetxt(path, self.values, delimiter=",", header=",".join(self.columns), comments="", fmt="%.17g")
+        """Through a temporary file renamed at the end (harness/output.py)."""
+        from harness.output import written
+        with written(Path(path)) as sink:
+            sink.write(",".join(self.columns) + "\n")
+            np.savetxt(sink, self.values, delimiter=",", fmt="%.17g")

@@ -22,17 +22,32 @@ class SimulationResult(TimeTable):
     fmu: str = ""
     discarded_at: float | None = None  # time of the last good point when a step was discarded
     messages: list[str] = field(default_factory=list)
+    interrupted: bool = False  # stopped by an interrupt (Ctrl-C): the rows before it are kept
+
+
+MAX_POINTS = 10_000_000  # communication points of one run: the rows of its table
 
 
 def communication_grid(start_time: float, stop_time: float, step: float) -> np.ndarray:
-    """start, start + step, ..., stop: points computed from their index (never accumulated)."""
-    if not (step > 0) or not math.isfinite(step):
+    """start, start + step, ..., stop: points computed from their index (never accumulated). The
+    start is always a point of its own, however short the run."""
+    for what, value in (("start time", start_time), ("stop time", stop_time), ("communication step", step)):
+        if not math.isfinite(value):
+            raise HarnessError(f"{what} {value} must be a finite number")
+    if not step > 0:
         raise HarnessError(f"communication step {step} must be a positive number")
-    if not (stop_time > start_time):
+    if not stop_time > start_time:
         raise HarnessError(f"stop time {stop_time} must be after the start time {start_time}")
-    n = math.ceil((stop_time - start_time) / step - 1e-9)
+    points = (stop_time - start_time) / step
+    if points > MAX_POINTS:
+        raise HarnessError(f"{stop_time - start_time:g} s in steps of {step:g} s would be {points:.3g} communication "
+                           f"points, more than the {MAX_POINTS:.0e} allowed: choose a larger step")
+    n = max(1, math.ceil(points - 1e-9))
     grid = start_time + step * np.arange(n + 1)
     grid[-1] = stop_time
+    if np.any(np.diff(grid) <= 0):
+        raise HarnessError(f"a step of {step:g} s does not advance the time at t = {stop_time:g} s "
+                           "(below the resolution of double precision)")
     return grid
 
 
@@ -96,19 +111,24 @@ class Recorder:
                                    f"{instance.last_message()}")
 
         rows = len(times)
+        interrupted = False
         record(0)
-        for i in range(1, len(times)):
-            t = times[i - 1]
-            status = do_step(component, t, times[i] - t, 1)
-            if status == DISCARD:
-                discarded_at = instance.last_successful_time()
+        i = 1
+        try:
+            for i in range(1, len(times)):
+                t = times[i - 1]
+                status = do_step(component, t, times[i] - t, 1)
+                if status == DISCARD:
+                    discarded_at = instance.last_successful_time()
+                    record(i)
+                    rows = i + 1
+                    break
+                if status >= ERROR:
+                    raise HarnessError(f"{name}: fmi2DoStep at t = {t} returned {STATUS_NAMES[status]}: "
+                                       f"{instance.last_message()}")
                 record(i)
-                rows = i + 1
-                break
-            if status >= ERROR:
-                raise HarnessError(f"{name}: fmi2DoStep at t = {t} returned {STATUS_NAMES[status]}: "
-                                   f"{instance.last_message()}")
-            record(i)
+        except KeyboardInterrupt:  # the rows before the interrupted step are kept
+            interrupted, rows, discarded_at = True, i, None
         table = np.empty((rows, len(self.columns)))
         table[:, 0] = self.grid[:rows]
         if discarded_at is not None:
@@ -116,4 +136,4 @@ class Recorder:
         table[:, 1:1 + n_real] = self.reals[:rows, :n_real]
         table[:, 1 + n_real:] = self.integers[:rows, :n_int]
         return SimulationResult(self.columns, table, instance.path.stem, discarded_at,
-                                [str(m) for m in instance.log.messages])
+                                [str(m) for m in instance.log.messages], interrupted)

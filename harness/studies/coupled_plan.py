@@ -11,7 +11,7 @@ from dataclasses import replace
 import numpy as np
 
 from harness.cosim.master import MasterOptions, run_system
-from harness.cosim.system import System
+from harness.cosim.structure import System
 from harness.errors import HarnessError
 from harness.fmi.methods import ORDER
 from harness.studies.coupling import CoupledPendulums

@@ -19,7 +19,7 @@ from pathlib import Path
 import numpy as np
 
 from harness.cosim.master import Master, MasterOptions
-from harness.cosim.system import System
+from harness.cosim.structure import System
 from harness.errors import HarnessError
 from harness.fmi.simulation import communication_grid
 from harness.studies.records import columns_of, read_records, write_records

@@ -32,7 +32,7 @@ from pathlib import Path
 
 import numpy as np
 
-from harness.cosim.system import Component, System
+from harness.cosim.structure import Component, System
 from harness.errors import HarnessError
 from harness.fmi.fmu_instance import read_fmi2_description
 from harness.fmi.methods import ORDER

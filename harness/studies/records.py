@@ -16,7 +16,8 @@ def columns_of(kind: type) -> list[str]:
 
 
 def write_records(records: list, path: Path, columns: list[str]) -> None:
-    with open(path, "w", newline="") as handle:
+    from harness.output import written
+    with written(Path(path)) as handle:
         writer = csv.DictWriter(handle, fieldnames=columns, extrasaction="ignore")
         writer.writeheader()
         for record in records:

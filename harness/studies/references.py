@@ -13,7 +13,7 @@ from pathlib import Path
 
 import numpy as np
 
-from harness.cosim.system import Component
+from harness.cosim.structure import Component
 from harness.fmi.fmu_instance import FmuInstance, read_fmi2_description
 from harness.fmi.simulation import Recorder, communication_grid
 from harness.objects.proof import object_file_in

@@ -24,7 +24,7 @@ from pathlib import Path
 
 import numpy as np
 
-from harness.cosim.system import Component
+from harness.cosim.structure import Component
 from harness.fmi.fmu_instance import FmuInstance, read_fmi2_description
 from harness.fmi.methods import FIXED_STEP, ORDER
 from harness.fmi.simulation import Recorder, communication_grid
@@ -186,10 +186,10 @@ def _scipy_point(task: Task, reference: TracedReference) -> Point:
 def _cvode_point(task: Task, reference: TracedReference) -> Point:
     from fmpy import simulate_fmu
     from fmpy.model_description import read_model_description
-    from fmpy import extract
+    from harness.archives import extract_fmu
     description = read_model_description(task.fmu)  # read once: simulate_fmu would parse it every run
     columns = traced_columns(task.fmu)
-    unzipped = extract(task.fmu)  # once per point, not per repeat
+    unzipped = str(extract_fmu(Path(task.fmu)))  # once per point, not per repeat
 
     def run():
         return simulate_fmu(unzipped, model_description=description, fmi_type="ModelExchange", solver="CVode",

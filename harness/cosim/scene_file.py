@@ -1,0 +1,190 @@
+"""The harness's own scene file (JSON), read against its schema: every wrong key, type or value is
+a one-line HarnessError naming the file and the place.
+
+    {
+      "name": "coupled pendulums",
+      "description": "free text",
+      "stop": 10.0, "step": 0.01,
+      "components": {
+        "left":   {"fmu": "SimplePendulum", "start": {"phi": 0.5, "solver": "rk4"}, "traces": [["x", "y"]]},
+        "spring": {"fmu": "Spring", "start": {"k": 10.0, "l0": 1.5}},
+        "right":  {"fmu": "SimplePendulum", "start": {"anchor_x": 1.5}}
+      },
+      "connections": [["left.x", "spring.a_x"], ["spring.Fa_x", "left.F_x"]],
+      "accuracy": {"position": 0.001},
+      "camera": {"scale": 200, "frame_rate": 25}
+    }
+
+"fmu" is one of the project's FMU names (built on demand) or a path relative to the scene file. A
+start value is a finite number or the name of an enumeration item. Components are stepped in the
+order listed (this is the Gauss-Seidel order). "accuracy" holds "position" (metres) or "pixels"
+(through the camera's scale).
+"""
+from __future__ import annotations
+
+import json
+import math
+from pathlib import Path
+
+from harness.cosim.structure import Component, Connection, System
+from harness.errors import HarnessError
+from harness.fmi.fmus import FMU_NAMES, locate_fmu
+
+MAX_SCENE_BYTES = 16 << 20
+
+SCENE_KEYS = ("name", "description", "stop", "step", "components", "connections", "accuracy", "camera")
+COMPONENT_KEYS = ("fmu", "start", "traces")
+ACCURACY_KEYS = ("position", "pixels")
+CAMERA_KEYS = ("scale", "frame_rate")
+
+
+class _Reader:
+    """Checks values at their place in the file; `where` names that place in messages."""
+
+    def __init__(self, path: Path):
+        self.path = path
+
+    def fail(self, where: str, problem: str) -> HarnessError:
+        return HarnessError(f"{self.path}: {where} {problem}")
+
+    def object(self, value, where: str, keys: tuple[str, ...] | None = None) -> dict:
+        if not isinstance(value, dict):
+            raise self.fail(where, f"must be an object, not {_kind(value)}")
+        if keys is not None:
+            unknown = [k for k in value if k not in keys]
+            if unknown:
+                raise self.fail(where, f"has an unknown key {unknown[0]!r} (known: {', '.join(keys)})")
+        return value
+
+    def text(self, value, where: str) -> str:
+        if not isinstance(value, str):
+            raise self.fail(where, f"must be a string, not {_kind(value)}")
+        return value
+
+    def positive(self, value, where: str) -> float:
+        if isinstance(value, bool) or not isinstance(value, (int, float)):
+            raise self.fail(where, f"must be a number, not {_kind(value)}")
+        if not (math.isfinite(value) and value > 0):
+            raise self.fail(where, f"= {value!r} must be a positive finite number")
+        return float(value)
+
+    def start_value(self, value, where: str) -> float | str:
+        if isinstance(value, str):
+            return value  # an enumeration item; the FMU's own check names the allowed ones
+        if isinstance(value, bool) or not isinstance(value, (int, float)):
+            raise self.fail(where, f"must be a number or an enumeration item's name, not {_kind(value)}")
+        if not math.isfinite(value):
+            raise self.fail(where, f"= {value!r} is not a finite number")
+        return value
+
+    def pair(self, value, where: str) -> tuple[str, str]:
+        if not (isinstance(value, list) and len(value) == 2 and all(isinstance(v, str) for v in value)):
+            raise self.fail(where, f"must be a pair of strings [\"A.output\", \"B.input\"], not {_short(value)}")
+        return value[0], value[1]
+
+
+def _kind(value) -> str:
+    return {dict: "an object", list: "a list", str: "a string", bool: "true/false", type(None): "null",
+            int: "a number", float: "a number"}.get(type(value), type(value).__name__)
+
+
+def _short(value) -> str:
+    text = json.dumps(value)
+    return text if len(text) <= 60 else text[:57] + "..."
+
+
+def _no_constants(name: str):
+    raise ValueError(f"{name} is not a JSON number")
+
+
+def _unique_keys(pairs: list[tuple[str, object]]) -> dict:
+    result = {}
+    for key, value in pairs:
+        if key in result:
+            raise ValueError(f"the key {key!r} appears twice in one object")
+        result[key] = value
+    return result
+
+
+def read_json(path: Path) -> object:
+    """A JSON file as Python values: UTF-8, at most MAX_SCENE_BYTES, no NaN or Infinity, no repeated
+    keys, nesting no deeper than the parser allows."""
+    try:
+        with path.open("rb") as stream:
+            data = stream.read(MAX_SCENE_BYTES + 1)
+    except OSError as error:
+        raise HarnessError(f"{path}: cannot read the scene file ({error.strerror})") from None
+    if len(data) > MAX_SCENE_BYTES:
+        raise HarnessError(f"{path}: larger than {MAX_SCENE_BYTES} bytes, too large for a scene file")
+    try:
+        text = data.decode("utf-8")
+    except UnicodeDecodeError as error:
+        raise HarnessError(f"{path}: not UTF-8 text (byte {error.start})") from None
+    try:
+        return json.loads(text, parse_constant=_no_constants, object_pairs_hook=_unique_keys)
+    except json.JSONDecodeError as error:
+        raise HarnessError(f"{path}: not valid JSON (line {error.lineno}, column {error.colno}: {error.msg})") from None
+    except ValueError as error:
+        raise HarnessError(f"{path}: {error}") from None
+    except RecursionError:
+        raise HarnessError(f"{path}: nested too deeply to be a scene file") from None
+
+
+def _split(reference: str, where: str, read: _Reader) -> tuple[str, str]:
+    component, sep, variable = reference.partition(".")
+    if not sep or not component or not variable:
+        raise read.fail(where, f"{reference!r} must be COMPONENT.VARIABLE")
+    return component, variable
+
+
+def _fmu_path(value: str, base: Path, where: str, read: _Reader) -> Path:
+    if value in FMU_NAMES:
+        return locate_fmu(value)
+    path = (base / value).resolve()
+    if not path.is_file():
+        raise read.fail(where, f"{value!r}: no such FMU (looked for {path}; project FMUs: {', '.join(FMU_NAMES)})")
+    return path
+
+
+def load_scene_file(path: Path) -> System:
+    read = _Reader(path)
+    data = read.object(read_json(path), "the scene", SCENE_KEYS)
+    name = read.text(data.get("name", path.stem), "\"name\"")
+    if "description" in data:
+        read.text(data["description"], "\"description\"")
+    stop = read.positive(data["stop"], "\"stop\"") if "stop" in data else None
+    step = read.positive(data["step"], "\"step\"") if "step" in data else None
+    if "components" not in data:
+        raise read.fail("the scene", "needs a \"components\" object")
+    specs = read.object(data["components"], "\"components\"")
+    if not specs:
+        raise read.fail("\"components\"", "is empty")
+    components, traces = [], {}
+    for component_name, spec in specs.items():
+        where = f"component {component_name!r}"
+        spec = read.object(spec, where, COMPONENT_KEYS)
+        if "fmu" not in spec:
+            raise read.fail(where, "needs an \"fmu\"")
+        fmu = _fmu_path(read.text(spec["fmu"], f"{where}: \"fmu\""), path.parent, f"{where}: \"fmu\"", read)
+        start = {variable: read.start_value(value, f"{where}: start value {variable!r}")
+                 for variable, value in read.object(spec.get("start", {}), f"{where}: \"start\"").items()}
+        components.append(Component(component_name, fmu, start))
+        if "traces" in spec:
+            if not isinstance(spec["traces"], list):
+                raise read.fail(f"{where}: \"traces\"", f"must be a list of column pairs, not {_kind(spec['traces'])}")
+            traces[component_name] = [read.pair(p, f"{where}: a trace") for p in spec["traces"]]
+    connections = []
+    pairs = data.get("connections", [])
+    if not isinstance(pairs, list):
+        raise read.fail("\"connections\"", f"must be a list of pairs, not {_kind(pairs)}")
+    for pair in pairs:
+        output, input_ = read.pair(pair, "a connection")
+        (source, out_name), (target, in_name) = _split(output, "a connection", read), _split(input_, "a connection", read)
+        connections.append(Connection(source, out_name, target, in_name))
+    accuracy = read.object(data.get("accuracy", {}), "\"accuracy\"", ACCURACY_KEYS)
+    if len(accuracy) > 1:
+        raise read.fail("\"accuracy\"", "takes \"position\" or \"pixels\", not both")
+    camera = read.object(data.get("camera", {}), "\"camera\"", CAMERA_KEYS)
+    accuracy = {k: read.positive(v, f"\"accuracy\": {k!r}") for k, v in accuracy.items()}
+    camera = {k: read.positive(v, f"\"camera\": {k!r}") for k, v in camera.items()}
+    return System(name, components, connections, stop, step, accuracy, camera, traces, origin=str(path))

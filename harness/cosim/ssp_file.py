@@ -1,0 +1,168 @@
+"""SSP 1.0 systems through fmpy's SSD reader: an `.ssp` archive, a folder holding
+`SystemStructure.ssd`, or an `.ssd` file next to its resources. Parameter bindings (inline or
+`.ssv` files) become start values.
+
+From an archive only what the system uses is taken out: the SSD and its parameter files are read
+in memory, and each component's FMU, which must be a member of the archive, is extracted (bounded,
+see harness/archives.py) into a temporary folder that the returned System owns.
+"""
+from __future__ import annotations
+
+import io
+import math
+import shutil
+import tempfile
+import xml.etree.ElementTree as ET
+import zipfile
+from pathlib import Path, PurePosixPath
+
+from harness.archives import extract_members, name_problem, open_archive, read_member
+from harness.cosim.structure import Component, Connection, System
+from harness.errors import HarnessError
+
+SSD = "SystemStructure.ssd"
+
+
+def _first_line(error: BaseException) -> str:
+    lines = str(error).strip().splitlines()
+    return lines[0] if lines else type(error).__name__
+
+
+def _in_memory_ssd(files: dict[str, bytes]) -> io.BytesIO:
+    """A zip holding the SSD and its parameter files: what fmpy's read_ssd opens."""
+    buffer = io.BytesIO()
+    with zipfile.ZipFile(buffer, "w") as archive:
+        for name, data in files.items():
+            archive.writestr(name, data)
+    buffer.seek(0)
+    return buffer
+
+
+def _ssd_files_from_archive(archive: zipfile.ZipFile, what: str) -> dict[str, bytes]:
+    if SSD not in archive.namelist():
+        raise HarnessError(f"{what}: no {SSD} in the archive")
+    files = {SSD: read_member(archive, SSD, what)}
+    for name in archive.namelist():
+        if name.endswith((".ssv", ".ssm")):
+            files[name] = read_member(archive, name, what)
+    return files
+
+
+def _ssd_files_from_folder(root: Path, ssd: Path) -> dict[str, bytes]:
+    def read(path: Path) -> bytes:
+        try:
+            return path.read_bytes()
+        except OSError as error:
+            raise HarnessError(f"{path}: cannot read ({error.strerror})") from None
+    files = {SSD: read(ssd)}
+    for extra in root.rglob("*.ss[vm]"):  # parameter values and mappings the SSD may reference
+        files[extra.relative_to(root).as_posix()] = read(extra)
+    return files
+
+
+def _number(text: str | None, what: str) -> float:
+    try:
+        value = float(text)
+    except (TypeError, ValueError):
+        raise HarnessError(f"{what} = {text!r} is not a number") from None
+    if not math.isfinite(value):
+        raise HarnessError(f"{what} = {text!r} is not a finite number")
+    return value
+
+
+def _bound_values(element, what: str) -> dict[str, float | int | str]:
+    values: dict[str, float | int | str] = {}
+    for binding in getattr(element, "parameterBindings", []):
+        prefix = binding.prefix or ""
+        for parameter_set in binding.parameterValues:
+            for parameter in parameter_set.parameters:
+                name = parameter.name[len(prefix):] if prefix and parameter.name.startswith(prefix) else parameter.name
+                where = f"{what}: parameter {name!r}"
+                if parameter.type == "Real":
+                    values[name] = _number(parameter.value, where)
+                elif parameter.type in ("Integer", "Enumeration"):
+                    number = _number(parameter.value, where)
+                    if number != int(number):
+                        raise HarnessError(f"{where} = {parameter.value!r} is not an integer")
+                    values[name] = int(number)
+                else:
+                    values[name] = parameter.value
+    return values
+
+
+def _experiment(ssd_bytes: bytes, what: str) -> float | None:
+    """stopTime of the SSD's DefaultExperiment (fmpy's reader does not keep it)."""
+    root = ET.fromstring(ssd_bytes)
+    for element in root:
+        if element.tag.endswith("}DefaultExperiment") and element.get("stopTime") is not None:
+            return _number(element.get("stopTime"), f"{what}: DefaultExperiment stopTime")
+    return None
+
+
+def load_ssp(path: Path) -> System:
+    from fmpy.ssp.ssd import Component as SspComponent, read_ssd
+    what = str(path)
+    is_archive = path.is_file() and path.suffix == ".ssp"
+    if is_archive:
+        with open_archive(path, what) as archive:
+            files = _ssd_files_from_archive(archive, what)
+        root = None
+    else:
+        if path.is_dir():
+            root, ssd_path = path, path / SSD
+        elif path.is_file() and path.suffix == ".ssd":
+            root, ssd_path = path.parent, path
+        else:
+            raise HarnessError(f"{path}: expected a scene file (.json), an .ssp archive, an .ssd file or a folder "
+                               f"with {SSD}")
+        if not ssd_path.is_file():
+            raise HarnessError(f"{path}: no {SSD} in this folder")
+        files = _ssd_files_from_folder(root, ssd_path)
+    try:
+        ssd = read_ssd(_in_memory_ssd(files))
+        stop = _experiment(files[SSD], what)
+    except HarnessError:
+        raise
+    except Exception as error:  # lxml, schema and reader errors come as several types
+        raise HarnessError(f"{path}: malformed SSD ({_first_line(error)})") from None
+    system = ssd.system
+    system_values = _bound_values(system, what)
+    elements = [e for e in system.elements if isinstance(e, SspComponent)]
+    sources = {}
+    for element in elements:
+        source = element.source or ""
+        if is_archive:
+            problem = name_problem(source)
+            if problem or not source:
+                raise HarnessError(f"{path}: component {element.name!r}: source {source!r} "
+                                   f"{problem or 'is empty'}; an .ssp loads its FMUs from inside the archive")
+            source = PurePosixPath(source).as_posix()
+        sources[element.name] = source
+    workspace = Path(tempfile.mkdtemp(prefix="ssp_")) if is_archive and elements else None
+    try:
+        if workspace is not None:
+            with open_archive(path, what) as archive:
+                missing = sorted(s for s in sources.values() if s not in archive.namelist())
+                if missing:
+                    raise HarnessError(f"{path}: source {missing[0]} not found in the archive")
+                extract_members(archive, workspace, set(sources.values()).__contains__, what)
+        base = workspace if workspace is not None else root
+        components = []
+        for element in elements:
+            fmu = base / sources[element.name]
+            if not fmu.is_file():
+                raise HarnessError(f"{path}: component {element.name!r}: source {sources[element.name]} not found")
+            start = {k.split(".", 1)[1]: v for k, v in system_values.items() if k.startswith(element.name + ".")}
+            start.update(_bound_values(element, f"{what}: component {element.name!r}"))
+            components.append(Component(element.name, fmu, start))
+        connections = [Connection(c.startElement, c.startConnector, c.endElement, c.endConnector)
+                       for c in system.connections]
+        step = None
+        info = getattr(system, "simulationInformation", None)
+        if info is not None and getattr(info, "fixedStepMaster", None) is not None:
+            step = _number(info.fixedStepMaster.stepSize, f"{what}: FixedStepMaster stepSize")
+        return System(ssd.name or path.stem, components, connections, stop, step, workspace=workspace, origin=what)
+    except BaseException:
+        if workspace is not None:
+            shutil.rmtree(workspace, ignore_errors=True)
+        raise

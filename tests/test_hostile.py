@@ -1,0 +1,564 @@
+"""The hostile suite: generated inputs (hypothesis) against the command line and the FMUs.
+
+For every command-line input, whatever it is: the exit code is 0, 1 or 2 (3 would be a fault of
+the harness, 130 an interrupt), a user error (2) is one line on stderr, there is no traceback, no
+temporary folder or file is left behind, and a CSV that was written is well formed (a unique
+header, every row as long, every cell a finite number). For every FMI call sequence with extreme
+in-range values: no non-finite number handed out with fmi2OK, and no fmi2DoStep doing more than
+the stated bound of work (counted, not timed).
+
+The CLI runs in this process (main() is its error boundary), with tempfile's folder pointed at an
+empty one per example, so that anything left behind is seen.
+"""
+from __future__ import annotations
+
+import contextlib
+import ctypes
+import io
+import itertools
+import json
+import math
+import re
+import shutil
+import tempfile
+import zipfile
+from pathlib import Path
+
+import pytest
+from fmpy import read_model_description
+from hypothesis import HealthCheck, assume, given, settings
+from hypothesis import strategies as st
+
+from harness import archives
+from harness.cli import main
+from harness.fmi.fmu_instance import DISCARD, OK, FmuInstance
+from harness.fmi.fmus import FMU_NAMES, PROJECT_ROOT, build_dir
+from harness.objects.object_file import MAX_EVALUATIONS_PER_CALL
+
+def hostile(examples: int) -> settings:
+    """Reproducible runs (derandomized), no deadline: the FMUs' work bound, not a clock, bounds a call."""
+    return settings(max_examples=examples, deadline=None, suppress_health_check=list(HealthCheck), derandomize=True,
+                    database=None)
+
+SCENE = PROJECT_ROOT / "scenes" / "coupled_pendulums.json"
+counter = itertools.count()
+
+
+class Outcome:
+    def __init__(self, code: int, stdout: str, stderr: str):
+        self.code, self.stdout, self.stderr = code, stdout, stderr
+
+    def __repr__(self) -> str:
+        return f"exit {self.code}\nstdout: {self.stdout[-500:]}\nstderr: {self.stderr[-1500:]}"
+
+
+def cli(argv: list[str], workspace: Path) -> Outcome:
+    """Runs the command line in this process; checks the promises that hold for every input."""
+    watched = workspace / f"tmp{next(counter)}"
+    watched.mkdir()
+    before = set(workspace.iterdir())
+    stdout, stderr = io.StringIO(), io.StringIO()
+    saved = tempfile.tempdir
+    tempfile.tempdir = str(watched)
+    try:
+        with contextlib.redirect_stdout(stdout), contextlib.redirect_stderr(stderr):
+            try:
+                code = main(argv)
+            except SystemExit as stop:  # argparse's usage errors and --help
+                code = stop.code if isinstance(stop.code, int) else 2
+    finally:
+        tempfile.tempdir = saved
+    outcome = Outcome(code, stdout.getvalue(), stderr.getvalue())
+    assert code in (0, 1, 2), outcome
+    assert "Traceback" not in outcome.stderr, outcome
+    if code == 2:
+        assert len(outcome.stderr.strip().splitlines()) == 1, outcome
+    left = list(watched.iterdir())
+    assert not left, f"left behind in the temporary folder: {left}\n{outcome}"
+    watched.rmdir()
+    stray = [p for p in set(workspace.iterdir()) - before if p.name.endswith(".part")]
+    assert not stray, f"temporary output files left: {stray}"
+    return outcome
+
+
+def well_formed_csv(path: Path) -> int:
+    """Rows of a CSV the harness wrote; fails unless it is well formed."""
+    lines = path.read_text().splitlines()
+    header = lines[0].split(",")
+    assert header[0] == "time" and len(set(header)) == len(header) and all(header), header
+    for line in lines[1:]:
+        cells = line.split(",")
+        assert len(cells) == len(header), line
+        assert all(math.isfinite(float(cell)) for cell in cells), line
+    return len(lines) - 1
+
+
+def output_checked(outcome: Outcome, out: Path) -> None:
+    if out.exists():
+        rows = well_formed_csv(out)
+        if outcome.code == 0:
+            assert rows >= 2, outcome
+    else:
+        assert outcome.code != 0, outcome
+
+
+@pytest.fixture(scope="module")
+def workspace(tmp_path_factory, fmu_paths) -> Path:
+    return tmp_path_factory.mktemp("hostile")
+
+
+# ---- command-line arguments ---------------------------------------------------------------------
+
+# Numbers as text, chosen so that every run they allow is short: a few points, or refused at once.
+number_text = st.one_of(
+    st.sampled_from(["inf", "-inf", "nan", "NaN", "-0", "0", "-1", "1e-300", "5e-324", "1e-12", "0.05", "0.02",
+                     "1e15", "1e308", "1.7976931348623157e308", "abc", "", " ", "0x10", "1_0", "1e", "--1",
+                     "4294967301", "-2147483649", "2.5"]),
+    st.floats(allow_nan=True, allow_infinity=True).map(repr).filter(lambda t: not 0.1 < abs(float(t)) < 1e14),
+    st.text(max_size=12))
+variable_names = st.sampled_from(["phi", "omega", "L", "m", "g", "d", "h", "tol", "solver", "model", "F_x",
+                                  "anchor_x", "n_rhs", "x", "nothing", "", "phi=1", "é", "a,b"])
+value_text = st.one_of(number_text, st.sampled_from(["rk4", "ab6", "rkf45", "euler", "linear", "RK4", "ab7"]))
+
+
+def mostly(valid, hostile):
+    """Three in four draws valid: so that a run with several arguments often gets past the parser
+    and its extreme values reach the FMU."""
+    return st.tuples(st.sampled_from([True, True, True, False]), valid, hostile).map(
+        lambda draw: draw[1] if draw[0] else draw[2])
+
+
+# In-range extremes of the SimplePendulum's settable values, as --set text.
+extreme_assignments = st.sampled_from([
+    ("phi", "3.141592653589793"), ("phi", "-1e300"), ("omega", "1e300"), ("omega", "1e9"), ("L", "1e-9"),
+    ("L", "1.7e308"), ("m", "1e-9"), ("m", "1e300"), ("g", "0"), ("g", "1e300"), ("d", "1e300"), ("d", "0"),
+    ("tol", "1e-14"), ("tol", "1"), ("h", "1e-9"), ("h", "1e300"), ("F_x", "1e300"), ("F_x", "-1.7e308"),
+    ("anchor_x", "1e308"), ("solver", "rkf45"), ("solver", "ab6"), ("solver", "12"), ("solver", "1"),
+    ("model", "linear"), ("model", "2")])
+
+
+@given(stop=mostly(st.sampled_from(["0.05", "0.02", "1e-12", "0.011", "1e3"]), number_text),
+       step=mostly(st.sampled_from(["0.01", "0.05", "1e-3", "1e3"]), number_text),
+       h=st.one_of(st.none(), st.none(), st.sampled_from(["1e-9", "0.001", "1", "1e300"]), number_text),
+       solver=st.one_of(st.none(), st.sampled_from(["euler", "rkf45", "ab6", "nystrom5"]), value_text),
+       assignments=st.lists(mostly(extreme_assignments, st.tuples(variable_names, value_text)), max_size=3),
+       fmu=mostly(st.sampled_from(["SimplePendulum", "KapitzaPendulum", "Chain5"]),
+                  st.sampled_from(["Spring", "NoSuchFmu", "x.fmu", ""])))
+@hostile(150)
+def test_simulate_arguments(workspace, stop, step, h, solver, assignments, fmu):
+    out = workspace / f"simulate{next(counter)}.csv"
+    argv = ["simulate", fmu, f"--stop={stop}", f"--step={step}", "--out", str(out)]
+    argv += [f"--h={h}"] if h is not None else []
+    argv += [f"--solver={solver}"] if solver is not None else []
+    for name, value in assignments:
+        argv += ["--set", f"{name}={value}"]
+    output_checked(cli(argv, workspace), out)
+
+
+def valid_positive(text: str) -> bool:
+    try:
+        return math.isfinite(float(text)) and float(text) > 0
+    except ValueError:
+        return False
+
+
+def valid_count(largest: int):
+    def valid(text: str) -> bool:
+        try:
+            return 1 <= int(text) <= largest
+        except ValueError:
+            return False
+    return valid
+
+
+# option -> (commands taking it, what a valid value is)
+NUMERIC_OPTIONS = {"--stop": (("simulate", "run"), valid_positive), "--step": (("simulate", "run"), valid_positive),
+                   "--h": (("simulate",), valid_positive), "--iterate": (("run",), valid_positive),
+                   "--tolerance": (("run", "plan"), valid_positive), "--pixels": (("plan",), valid_positive),
+                   "--duration": (("plan", "demo"), valid_positive), "--repeats": (("chart",), valid_count(1000)),
+                   "--workers": (("chart", "plan"), valid_count(256))}
+
+
+@given(option=st.sampled_from(sorted(NUMERIC_OPTIONS)), choice=st.integers(0, 1),
+       value=st.one_of(number_text, st.sampled_from(["0", "-3", "1001", "257", "1e9", "/", "."])))
+@hostile(80)
+def test_option_values_are_checked_before_any_work(workspace, option, choice, value):
+    """Every numeric option value that cannot be right is refused by the parser: exit 2, one line
+    naming the option, before any work starts."""
+    commands, valid = NUMERIC_OPTIONS[option]
+    assume(not valid(value))
+    command = commands[choice % len(commands)]
+    first = {"chart": ["coupling"], "run": [str(SCENE)], "plan": [str(SCENE)], "simulate": ["SimplePendulum"]}
+    argv = [command, *first.get(command, []), f"{option}={value}", "--out", str(workspace / f"opt{next(counter)}")]
+    outcome = cli(argv, workspace)
+    assert outcome.code == 2 and f"argument {option}" in outcome.stderr, outcome
+
+
+def test_unknown_commands_and_options(workspace):
+    for argv in (["nothing"], ["simulate", "SimplePendulum", "--bogus", "1"], ["run"], []):
+        outcome = cli(argv, workspace)
+        assert outcome.code == 2, outcome
+
+
+# ---- scene files ------------------------------------------------------------------------------
+
+json_values = st.recursive(
+    st.one_of(st.none(), st.booleans(), st.integers(-2**70, 2**70), st.floats(allow_nan=True, allow_infinity=True),
+              st.text(max_size=8), st.sampled_from(["SimplePendulum", "Spring", "left.x", "rk4", "a,b", "x\ny"])),
+    lambda children: st.one_of(st.lists(children, max_size=3), st.dictionaries(st.text(max_size=6), children,
+                                                                                max_size=3)),
+    max_leaves=8)
+
+# Where a scene file's values live: a path of keys into the valid scene.
+SCENE_PLACES = [(), ("name",), ("stop",), ("step",), ("components",), ("components", "left"),
+                ("components", "left", "fmu"), ("components", "left", "start"), ("components", "left", "start", "phi"),
+                ("components", "left", "start", "solver"), ("components", "left", "traces"),
+                ("components", "spring", "start", "k"), ("connections",), ("connections", 0), ("connections", 0, 1),
+                ("accuracy",), ("accuracy", "pixels"), ("camera",), ("camera", "scale"), ("camera", "frame_rate"),
+                ("components", "left", "extra"), ("extra",)]
+
+
+def replaced(document, place: tuple, value):
+    if not place:
+        return value
+    head, rest = place[0], place[1:]
+    if isinstance(document, dict):
+        copy = dict(document)
+        copy[head] = replaced(document.get(head, {}), rest, value)
+        return copy
+    copy = list(document)
+    copy[head] = replaced(copy[head], rest, value)
+    return copy
+
+
+def run_scene(workspace: Path, text: str | bytes, extra: list[str] = ()) -> None:
+    index = next(counter)
+    scene = workspace / f"scene{index}.json"
+    scene.write_bytes(text if isinstance(text, bytes) else text.encode("utf-8", "surrogatepass"))
+    out = workspace / f"scene{index}.csv"
+    outcome = cli(["run", str(scene), "--stop", "0.05", "--step", "0.01", "--out", str(out), "--quiet", *extra],
+                  workspace)
+    output_checked(outcome, out)
+
+
+@given(place=st.sampled_from(SCENE_PLACES), value=json_values)
+@hostile(150)
+def test_scene_files_with_a_wrong_value(workspace, place, value):
+    scene = json.loads(SCENE.read_text())
+    scene["camera"] = {"scale": 200, "frame_rate": 25}
+    run_scene(workspace, json.dumps(replaced(scene, place, value)))
+
+
+@given(data=st.one_of(st.binary(max_size=200), st.text(max_size=200).map(str.encode)),
+       cut=st.integers(0, 2000), depth=st.integers(0, 200_000))
+@hostile(60)
+def test_scene_files_that_are_not_json(workspace, data, cut, depth):
+    text = SCENE.read_bytes()
+    for content in (data, text[:cut], b"[" * depth, text[:cut] + data):
+        run_scene(workspace, content)
+
+
+@given(stop=number_text, step=number_text)
+@hostile(40)
+def test_scene_times(workspace, stop, step):
+    """A scene's own stop and step (no --stop/--step): only short runs or a refusal."""
+    scene = json.loads(SCENE.read_text())
+    for key, text in (("stop", stop), ("step", step)):
+        try:
+            scene[key] = float(text) if text.strip().lower() not in ("nan", "inf", "-inf") else text
+        except ValueError:
+            scene[key] = text
+    assume(not (isinstance(scene["stop"], float) and isinstance(scene["step"], float)
+                and 0 < scene["step"] and scene["stop"] / scene["step"] > 2000 and scene["stop"] < 1e9))
+    index = next(counter)
+    path = workspace / f"times{index}.json"
+    path.write_text(json.dumps(scene))
+    out = workspace / f"times{index}.csv"
+    output_checked(cli(["run", str(path), "--out", str(out), "--quiet"], workspace), out)
+
+
+@given(names=st.lists(st.text(min_size=0, max_size=6), min_size=2, max_size=2),
+       twice=st.booleans())
+@hostile(40)
+def test_component_names_and_double_connections(workspace, names, twice):
+    components = {names[0]: {"fmu": "SimplePendulum"}, names[1]: {"fmu": "SimplePendulum"}}
+    connections = [[f"{names[0]}.x", f"{names[1]}.F_x"]] + ([[f"{names[0]}.y", f"{names[1]}.F_x"]] if twice else [])
+    run_scene(workspace, json.dumps({"components": components, "connections": connections}))
+
+
+def test_an_input_fed_twice_is_refused(workspace):
+    components = {"a": {"fmu": "SimplePendulum"}, "b": {"fmu": "SimplePendulum"}}
+    scene = workspace / "twice.json"
+    scene.write_text(json.dumps({"components": components, "connections": [["a.x", "b.F_x"], ["a.y", "b.F_x"]]}))
+    outcome = cli(["run", str(scene), "--stop", "0.1", "--step", "0.05", "--out", str(workspace / "t.csv")], workspace)
+    assert outcome.code == 2 and "input b.F_x is fed by two connections (a.x and a.y)" in outcome.stderr, outcome
+
+
+# ---- SSD files and archives -------------------------------------------------------------------
+
+def ssp_folder() -> Path:
+    return build_dir() / "scenes" / "coupled_pendulums"
+
+
+SSD_ATTRIBUTES = re.compile(r'(stopTime|stepSize|value|name|source|startElement|endConnector)="([^"]*)"')
+ssd_values = st.one_of(st.sampled_from(["INF", "-INF", "NaN", "-1", "0", "1e308", "abc", "", "a,b", "x.y",
+                                        "/etc/passwd", "../Spring.fmu", "resources/../../x.fmu", "C:\\x.fmu",
+                                        "resources/Spring.fmu", "left", "spring", "F_x", "4294967301", "a" * 300]),
+                       st.text(alphabet=st.characters(blacklist_characters='"<&', blacklist_categories=("Cs",)),
+                               max_size=10))
+
+
+@given(edits=st.lists(st.tuples(st.integers(0, 200), ssd_values), min_size=1, max_size=3),
+       packed=st.booleans())
+@hostile(80)
+def test_ssd_files_with_wrong_values(workspace, edits, packed):
+    text = (ssp_folder() / "SystemStructure.ssd").read_text()
+    matches = list(SSD_ATTRIBUTES.finditer(text))
+    for position, value in edits:
+        match = matches[position % len(matches)]
+        text = text[:match.start(2)] + value + text[match.end(2):]
+        matches = list(SSD_ATTRIBUTES.finditer(text))
+    index = next(counter)
+    folder = workspace / f"ssd{index}"
+    shutil.copytree(ssp_folder(), folder)
+    (folder / "SystemStructure.ssd").write_text(text)
+    target = folder
+    if packed:
+        target = Path(shutil.make_archive(str(workspace / f"ssd{index}"), "zip", folder)).rename(
+            workspace / f"ssd{index}.ssp")
+    out = workspace / f"ssd{index}.csv"
+    output_checked(cli(["run", str(target), "--stop", "0.05", "--step", "0.01", "--out", str(out), "--quiet"],
+                       workspace), out)
+
+
+def test_an_ssp_cannot_load_an_fmu_from_outside(workspace):
+    text = (ssp_folder() / "SystemStructure.ssd").read_text()
+    outside = str(build_dir() / "fmus" / "Spring.fmu")
+    target = workspace / "outside.ssp"
+    with zipfile.ZipFile(target, "w") as archive:
+        archive.writestr("SystemStructure.ssd", text.replace('source="resources/Spring.fmu"', f'source="{outside}"'))
+        archive.write(ssp_folder() / "resources" / "SimplePendulum.fmu", "resources/SimplePendulum.fmu")
+    outcome = cli(["run", str(target), "--stop", "0.1", "--step", "0.05", "--out", str(workspace / "o.csv")], workspace)
+    assert outcome.code == 2 and "is absolute; an .ssp loads its FMUs from inside the archive" in outcome.stderr, \
+        outcome
+
+
+# Archive damage: a member added under a hostile name, encrypted, with an unsupported compression
+# method, or random bytes of the archive changed or cut off.
+member_names = st.one_of(st.sampled_from(["../evil", "/abs", "C:/x", "a\\b", "binaries/linux64/../../up",
+                                          "x" * 300, "a/" * 600, "ok/\x01name", "resources/ok.txt"]),
+                         st.text(max_size=20))
+
+
+def rebuilt(source: Path, target: Path, extra_name: str | None = None, method: int | None = None,
+            encrypted: str | None = None) -> Path:
+    with zipfile.ZipFile(source) as original, zipfile.ZipFile(target, "w") as copy:
+        for item in original.infolist():
+            data = original.read(item)
+            info = zipfile.ZipInfo(item.filename, item.date_time)
+            info.compress_type = method if method is not None else item.compress_type
+            copy.writestr(info, data)
+        if extra_name is not None:
+            copy.writestr(zipfile.ZipInfo(extra_name), b"x")
+    if encrypted is not None:
+        mark_encrypted(target, encrypted)
+    return target
+
+
+def mark_encrypted(path: Path, member: str) -> None:
+    """Sets the 'encrypted' flag of one member in its local header and its central directory entry
+    (zipfile cannot write encrypted members)."""
+    data = bytearray(path.read_bytes())
+    with zipfile.ZipFile(path) as archive:
+        offset = archive.getinfo(member).header_offset
+    data[offset + 6] |= 0x1
+    entry = data.find(b"PK\x01\x02")
+    while entry != -1:
+        name_length = int.from_bytes(data[entry + 28:entry + 30], "little")
+        if data[entry + 46:entry + 46 + name_length] == member.encode():
+            data[entry + 8] |= 0x1
+        entry = data.find(b"PK\x01\x02", entry + 4)
+    path.write_bytes(bytes(data))
+
+
+def damaged(source: Path, target: Path, flips: list[tuple[int, int]], cut: int | None) -> Path:
+    data = bytearray(source.read_bytes())
+    for position, value in flips:
+        data[position % len(data)] = value
+    target.write_bytes(bytes(data[:cut] if cut is not None else data))
+    return target
+
+
+def run_archive(workspace: Path, path: Path) -> Outcome:
+    out = path.with_suffix(".csv")
+    argv = (["simulate", str(path), "--stop", "0.05", "--out", str(out)] if path.suffix == ".fmu" else
+            ["run", str(path), "--stop", "0.05", "--step", "0.01", "--out", str(out), "--quiet"])
+    outcome = cli(argv, workspace)
+    output_checked(outcome, out)
+    return outcome
+
+
+@given(kind=st.sampled_from([".fmu", ".ssp"]), name=member_names)
+@hostile(50)
+def test_archives_with_a_hostile_member_name(workspace, kind, name):
+    source = build_dir() / "fmus" / "SimplePendulum.fmu" if kind == ".fmu" else \
+        build_dir() / "scenes" / "coupled_pendulums.ssp"
+    with contextlib.suppress(ValueError):  # zipfile itself refuses some names (NUL)
+        run_archive(workspace, rebuilt(source, workspace / f"name{next(counter)}{kind}", extra_name=name))
+
+
+@pytest.mark.parametrize("kind", [".fmu", ".ssp"])
+@pytest.mark.parametrize("damage", ["encrypted", "bzip2", "lzma", "long name", "colon", "backslash"])
+def test_archive_damage_is_one_line(workspace, kind, damage):
+    source = build_dir() / "fmus" / "SimplePendulum.fmu" if kind == ".fmu" else \
+        build_dir() / "scenes" / "coupled_pendulums.ssp"
+    member = "modelDescription.xml" if kind == ".fmu" else "SystemStructure.ssd"
+    target = workspace / f"{damage.replace(' ', '_')}{kind}"
+    words = {"encrypted": "is encrypted", "bzip2": "uses compression method 12", "lzma": "uses compression method 14",
+             "long name": "is longer than 1024 characters", "colon": "contains a drive or device letter",
+             "backslash": "contains a backslash"}[damage]
+    if damage in ("encrypted", "bzip2", "lzma"):
+        rebuilt(source, target, encrypted=member if damage == "encrypted" else None,
+                method={"bzip2": zipfile.ZIP_BZIP2, "lzma": zipfile.ZIP_LZMA}.get(damage))
+    else:
+        name = {"long name": "resources/" + "x/" * 600 + "y", "colon": "resources/c:x", "backslash": "resources/a\\b"}
+        rebuilt(source, target, extra_name=name[damage])
+        if kind == ".ssp":  # an unused member of an .ssp is not extracted, so not refused either
+            outcome = run_archive(workspace, target)
+            assert outcome.code == 0, outcome
+            return
+    outcome = run_archive(workspace, target)
+    assert outcome.code == 2 and words in outcome.stderr, outcome
+
+
+@given(kind=st.sampled_from([".fmu", ".ssp"]), flips=st.lists(st.tuples(st.integers(0, 10**6), st.integers(0, 255)),
+                                                              max_size=4),
+       cut=st.one_of(st.none(), st.integers(0, 200_000)))
+@hostile(80)
+def test_corrupt_archives(workspace, kind, flips, cut):
+    source = build_dir() / "fmus" / "SimplePendulum.fmu" if kind == ".fmu" else \
+        build_dir() / "scenes" / "coupled_pendulums.ssp"
+    run_archive(workspace, damaged(source, workspace / f"corrupt{next(counter)}{kind}", flips, cut))
+
+
+def test_extraction_is_bounded(workspace, monkeypatch):
+    """Past the bounds on size and member count: a clear error, nothing left; a large member the
+    importer does not need is not extracted at all."""
+    source = build_dir() / "fmus" / "SimplePendulum.fmu"
+    big = workspace / "big.fmu"
+    with zipfile.ZipFile(source) as original, zipfile.ZipFile(big, "w", zipfile.ZIP_DEFLATED) as copy:
+        for item in original.infolist():
+            copy.writestr(item, original.read(item))
+        copy.writestr("documentation/zeros.bin", bytes(200 << 20))  # 200 MB of zeros, 0.2 MB compressed
+    folder = archives.extract_fmu(big)
+    try:
+        assert not (folder / "documentation").exists()
+        assert sum(p.stat().st_size for p in folder.rglob("*") if p.is_file()) < 1 << 20
+    finally:
+        shutil.rmtree(folder)
+    monkeypatch.setattr(archives, "MAX_BYTES", 10_000)
+    outcome = cli(["simulate", str(source), "--stop", "0.1", "--out", str(workspace / "b.csv")], workspace)
+    assert outcome.code == 2 and "more than 10000 bytes to extract (the bound)" in outcome.stderr, outcome
+    monkeypatch.setattr(archives, "MAX_MEMBERS", 3)
+    outcome = cli(["simulate", str(source), "--stop", "0.1", "--out", str(workspace / "b.csv")], workspace)
+    assert outcome.code == 2 and "more than the 3 allowed" in outcome.stderr, outcome
+
+
+# ---- outputs ----------------------------------------------------------------------------------
+
+def test_output_paths(workspace):
+    (workspace / "a_file").write_text("keep me")
+    cases = [(["simulate", "SimplePendulum", "--stop", "0.1", "--out", str(workspace)], "is a folder, not a file"),
+             (["simulate", "SimplePendulum", "--stop", "0.1", "--out", str(workspace / "a_file" / "x.csv")],
+              "is a file, not a folder"),
+             (["demo", "--out", str(workspace / "a_file")], "is a file, not a folder"),
+             (["chart", "coupling", "--out", str(workspace / "a_file")], "is a file, not a folder"),
+             (["run", str(SCENE), "--out", str(SCENE)], "is this command's input")]
+    for argv, words in cases:
+        outcome = cli(argv, workspace)
+        assert outcome.code == 2 and words in outcome.stderr, outcome
+    assert (workspace / "a_file").read_text() == "keep me"
+
+
+def test_a_failed_run_leaves_an_earlier_result_alone(workspace):
+    out = workspace / "earlier.csv"
+    assert cli(["simulate", "SimplePendulum", "--stop", "0.1", "--out", str(out)], workspace).code == 0
+    before = out.read_text()
+    outcome = cli(["simulate", "SimplePendulum", "--stop", "0.1", "--set", "L=-1", "--out", str(out)], workspace)
+    assert outcome.code == 2 and out.read_text() == before, outcome
+
+
+def test_a_short_run_keeps_its_start(workspace):
+    """--stop shorter than --step: the t = 0 row and the stop row, each labelled with its own time."""
+    out = workspace / "short.csv"
+    assert cli(["simulate", "SimplePendulum", "--stop", "1e-12", "--step", "0.01", "--out", str(out)],
+               workspace).code == 0
+    times = [float(line.split(",")[0]) for line in out.read_text().splitlines()[1:]]
+    assert times == [0.0, 1e-12]
+
+
+# ---- FMI call sequences with extreme in-range values ------------------------------------------
+
+def extreme_values(variable) -> list[float]:
+    low = float(variable.min) if variable.min is not None else -1.7e308
+    high = float(variable.max) if variable.max is not None else 1.7e308
+    values = {low, high, low + abs(low) * 1e-12, high - abs(high) * 1e-12}
+    if low <= 0 <= high:
+        values |= {0.0, 5e-324}
+    for v in (1e-300, 1e-9, 1.0, 1e9, 1e300, -1e300):
+        if low <= v <= high:
+            values.add(v)
+    return sorted(values)
+
+
+@pytest.mark.parametrize("name", FMU_NAMES)
+def test_fmi_sequences_with_extreme_values(fmu_paths, unzipped, name):
+    variables = read_model_description(str(fmu_paths[name])).modelVariables
+    settable = {v.name: v for v in variables
+                if v.type == "Real" and (v.causality in ("parameter", "input") or v.initial == "exact")}
+    solvers = [v for v in variables if v.name == "solver"]
+    items = [int(i.value) for i in solvers[0].declaredType.items] if solvers else [None]
+    counted = "n_rhs" in {v.name for v in variables}
+
+    @given(values=st.fixed_dictionaries({}, optional={n: st.sampled_from(extreme_values(v)) for n, v in
+                                                      settable.items()}),
+           solver=st.sampled_from(items), steps=st.lists(st.sampled_from([1e-300, 1e-9, 0.01, 1.0, 1e3, 1e9]),
+                                                         min_size=1, max_size=4))
+    @hostile(60)
+    def run(values, solver, steps):
+        with FmuInstance(fmu_paths[name], unzipdir=unzipped[name]) as fmu:
+            fmu.call("fmi2SetupExperiment", 0, ctypes.c_double(0.0), ctypes.c_double(0.0), 0, ctypes.c_double(0.0))
+            fmu.set(**values)
+            if solver is not None:
+                fmu.set(solver=solver)
+            fmu.call("fmi2EnterInitializationMode")
+            if fmu.call("fmi2ExitInitializationMode") != OK:
+                return
+            assert_finite_when_ok(fmu)
+            t = 0.0
+            for H in steps:
+                before = fmu.get("n_rhs")[0] if counted else 0
+                status = fmu.call("fmi2DoStep", ctypes.c_double(t), ctypes.c_double(H), 1)
+                if counted and status <= DISCARD:
+                    assert fmu.get("n_rhs")[0] - before <= MAX_EVALUATIONS_PER_CALL
+                assert_finite_when_ok(fmu)
+                if status != OK:
+                    return
+                t += H
+
+    run()
+
+
+def assert_finite_when_ok(fmu: FmuInstance) -> None:
+    variables = fmu.model_description.modelVariables
+    reals = [v.valueReference for v in variables if v.type == "Real"]
+    out = (ctypes.c_double * len(reals))()
+    if fmu.call("fmi2GetReal", (ctypes.c_uint * len(reals))(*reals), len(reals), out) == OK:
+        assert all(math.isfinite(x) for x in out), list(out)
+    outputs = [v.valueReference for v in variables if v.type == "Real" and v.causality == "output"]
+    if fmu.kind == "CS" and outputs:
+        n = len(outputs)
+        slopes = (ctypes.c_double * n)()
+        if fmu.call("fmi2GetRealOutputDerivatives", (ctypes.c_uint * n)(*outputs), n, (ctypes.c_int * n)(*[1] * n),
+                    slopes) == OK:
+            assert all(math.isfinite(x) for x in slopes), list(slopes)
