@@ -178,7 +178,9 @@ def test_an_interrupted_run_keeps_its_rows_and_removes_its_temporary_folders(fmu
                   "--quiet"])
     process = subprocess.Popen([sys.executable, "-m", "harness", *args, "--out", str(out)],
                                stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
-                               env={**os.environ, "TMPDIR": str(scratch)})
+                               env={**os.environ, "TMPDIR": str(scratch)},
+                               # a shell running the tests in the background ignores SIGINT, and children inherit that
+                               preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
     deadline = time.monotonic() + 60
     while not list(scratch.iterdir()) and time.monotonic() < deadline:  # its FMUs are extracted: it runs
         time.sleep(0.05)
