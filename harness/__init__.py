@@ -5,7 +5,17 @@
     result.write_csv("simple.csv")
 """
 from harness.errors import HarnessError
-from harness.fmi.fmus import FMU_NAMES, locate_fmu
-from harness.fmi.simulation import SimulationResult, simulate
 
 __all__ = ["FMU_NAMES", "HarnessError", "SimulationResult", "locate_fmu", "simulate"]
+
+
+def __getattr__(name: str):
+    """The library's entry points, imported when first used: the command line starts (and answers
+    Ctrl-C) before fmpy and numpy are loaded."""
+    if name in ("FMU_NAMES", "locate_fmu"):
+        from harness.fmi import fmus
+        return getattr(fmus, name)
+    if name in ("SimulationResult", "simulate"):
+        from harness.fmi import simulation
+        return getattr(simulation, name)
+    raise AttributeError(f"module 'harness' has no attribute {name!r}")

@@ -25,14 +25,19 @@ def build_fmus(quiet: bool = True) -> None:
         return
     if shutil.which("cmake") is None:
         raise HarnessError("cmake is not on PATH: it is needed to build the FMUs")
+    # quiet: the tools' messages are kept back and only the first error line is reported (make's own
+    # lines about an interrupt never reach the terminal)
     output = subprocess.DEVNULL if quiet else None
+    errors = subprocess.PIPE if quiet else None
     try:
-        subprocess.run(["cmake", "-S", str(PROJECT_ROOT), "-B", str(build_dir()), "-DCMAKE_BUILD_TYPE=Release",
-                        f"-DOBJECTS_PYTHON={sys.executable}"],
-                       check=True, stdout=output)
-        subprocess.run(["cmake", "--build", str(build_dir()), "-j2"], check=True, stdout=output)
+        for command in (["cmake", "-S", str(PROJECT_ROOT), "-B", str(build_dir()), "-DCMAKE_BUILD_TYPE=Release",
+                         f"-DOBJECTS_PYTHON={sys.executable}"], ["cmake", "--build", str(build_dir()), "-j2"]):
+            subprocess.run(command, check=True, stdout=output, stderr=errors, text=True)
     except subprocess.CalledProcessError as error:
-        raise HarnessError(f"building the FMUs failed: {' '.join(error.cmd)} exited with {error.returncode}") from None
+        lines = (error.stderr or "").splitlines()
+        first = next((line.strip() for line in lines if "error" in line.lower()), lines[0].strip() if lines else "")
+        raise HarnessError(f"building the FMUs failed: {' '.join(error.cmd[:2])} exited with {error.returncode}"
+                           + (f": {first}" if first else "")) from None
 
 
 def locate_fmu(name: str, build_if_missing: bool = True) -> Path:

@@ -12,6 +12,7 @@ in one FMU run cannot take the caller down.
 from __future__ import annotations
 
 import os
+import signal
 from concurrent.futures import ProcessPoolExecutor
 from typing import Callable, Iterable, TypeVar
 
@@ -34,9 +35,15 @@ def run_sweep(function: Callable[[Item], Result], items: Iterable[Item], schedul
         workers = workers or local_cores()
         if workers == 1:
             return [function(item) for item in items]
-        with ProcessPoolExecutor(max_workers=workers) as pool:
+        with ProcessPoolExecutor(max_workers=workers, initializer=_leave_interrupts_to_the_parent) as pool:
             return list(pool.map(function, items))
     return _dask_map(function, items, scheduler, workers)
+
+
+def _leave_interrupts_to_the_parent() -> None:
+    """Ctrl-C reaches every process of the terminal's group: the workers ignore it, the parent stops
+    the sweep (and the pool with it), so that an interrupt is one line, not one traceback per worker."""
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
 
 
 def _dask_map(function, items, scheduler: str, workers: int | None):
