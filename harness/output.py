@@ -26,9 +26,13 @@ def output_file(text: str | Path, option: str, inputs: tuple[str | Path | None, 
         raise HarnessError(f"{option} {str(text)!r}: names no file")
     if path.is_dir():
         raise HarnessError(f"{option} {path}: is a folder, not a file")
+    if path.exists() and not path.is_file():  # a device such as /dev/null would be replaced by the rename
+        raise HarnessError(f"{option} {path}: is not a regular file (a device, pipe or socket); choose a file")
     for given in inputs:
         if given is not None and Path(given).exists() and path.exists() and path.resolve() == Path(given).resolve():
             raise HarnessError(f"{option} {path}: is this command's input; choose another file")
+    if path.suffix.lower() in (".fmu", ".ssp", ".ssd", ".json", ".toml") and path.exists():
+        raise HarnessError(f"{option} {path}: is an existing {path.suffix} input file; choose another file")
     _check_parents(path, option)
     return path
 

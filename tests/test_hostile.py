@@ -473,7 +473,10 @@ def test_output_paths(workspace):
               "is a file, not a folder"),
              (["demo", "--out", str(workspace / "a_file")], "is a file, not a folder"),
              (["chart", "coupling", "--out", str(workspace / "a_file")], "is a file, not a folder"),
-             (["run", str(SCENE), "--out", str(SCENE)], "is this command's input")]
+             (["run", str(SCENE), "--out", str(SCENE)], "is this command's input"),
+             (["simulate", "SimplePendulum", "--stop", "0.1", "--out", "/dev/null"], "is not a regular file"),
+             (["simulate", "SimplePendulum", "--stop", "0.1", "--out", str(build_dir() / "fmus" / "Spring.fmu")],
+              "is an existing .fmu input file")]
     for argv, words in cases:
         outcome = cli(argv, workspace)
         assert outcome.code == 2 and words in outcome.stderr, outcome
