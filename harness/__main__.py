@@ -1,9 +1,19 @@
+import signal
 import sys
 
+
+def _interrupt(signum, frame):
+    raise KeyboardInterrupt
+
+
+signal.signal(signal.SIGTERM, _interrupt)  # SIGTERM while the modules load is an interrupt too
 try:
     from harness.cli import main
-except KeyboardInterrupt:  # Ctrl-C while the modules load
+    code = main()
+except KeyboardInterrupt:  # while the modules load, or just after main() returned
     print("harness: interrupted", file=sys.stderr)
-    sys.exit(130)
-
-sys.exit(main())
+    code = 130
+# the process ends now: a further signal must not turn the exit code into a death by signal
+signal.signal(signal.SIGTERM, signal.SIG_IGN)
+signal.signal(signal.SIGINT, signal.SIG_IGN)
+sys.exit(code)

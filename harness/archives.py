@@ -21,6 +21,7 @@ from harness.errors import HarnessError
 
 MAX_MEMBERS = 10_000
 MAX_BYTES = 1 << 30  # uncompressed bytes extracted from one archive
+MAX_READ = 64 << 20  # bytes of one member read into memory (a model description, an SSD)
 MAX_NAME = 1024      # characters in a member's name; 255 per part, as file systems allow
 ALLOWED_METHODS = {zipfile.ZIP_STORED: "store", zipfile.ZIP_DEFLATED: "deflate"}
 
@@ -93,7 +94,7 @@ def _checked(archive: zipfile.ZipFile, name: str, what: str) -> zipfile.ZipInfo:
     return info
 
 
-def read_member(archive: zipfile.ZipFile, name: str, what: str, limit: int = 64 << 20) -> bytes:
+def read_member(archive: zipfile.ZipFile, name: str, what: str, limit: int = MAX_READ) -> bytes:
     """One member's bytes, at most `limit` of them."""
     info = _checked(archive, name, what)
     if info.file_size > limit:

@@ -49,15 +49,16 @@ class OneLineParser(argparse.ArgumentParser):
 def command_simulate(args: argparse.Namespace) -> int:
     from harness.fmi.fmus import locate_fmu
     from harness.fmi.simulation import simulate
-    from harness.output import output_file
+    from harness.output import PICTURE_FORMATS, output_file
     out = output_file(args.out, "--out", (args.fmu,))
-    plot = output_file(args.plot, "--plot", (args.fmu, out)) if args.plot else None
+    plot = output_file(args.plot, "--plot", (args.fmu,), PICTURE_FORMATS, {"--out": out}) if args.plot else None
     start_values = dict(_parse_assignment(a) for a in args.set)
     if args.solver:
         start_values["solver"] = args.solver
     if args.h is not None:
         start_values["h"] = args.h
-    result = simulate(locate_fmu(args.fmu), stop_time=args.stop, step=args.step, start_values=start_values)
+    result = simulate(locate_fmu(args.fmu), stop_time=args.stop, step=args.step, start_values=start_values,
+                      keep_interrupted=True, progress=not args.quiet)
     result.write_csv(out)
     print(f"wrote {out} ({len(result.values)} rows)")
     if result.interrupted:
@@ -94,7 +95,7 @@ def command_demo(args: argparse.Namespace) -> int:
 def command_run(args: argparse.Namespace) -> int:
     from harness.cosim.master import Master, MasterOptions
     from harness.cosim.system import load_system
-    from harness.output import output_file, written
+    from harness.output import csv_header, output_file, written
     out = output_file(args.out, "--out", (args.system,))
     with load_system(args.system) as system:
         stop = args.stop if args.stop is not None else system.stop
@@ -104,7 +105,7 @@ def command_run(args: argparse.Namespace) -> int:
         options = MasterOptions(stop=stop, step=step, algorithm=args.algorithm, extrapolation=args.extrapolation,
                                 on_discard=args.on_discard, progress=not args.quiet, iterate_tol=args.iterate,
                                 tolerance=args.tolerance)
-        with Master(system, options) as master, written(out, ",".join(master.columns) + "\n") as stream:
+        with Master(system, options) as master, written(out, csv_header(master.columns)) as stream:
 
             def write_row(row) -> None:  # rows go out as they come: a stopped run keeps what it computed
                 stream.write(",".join(f"{v:.17g}" for v in row) + "\n")
@@ -142,7 +143,7 @@ def command_chart(args: argparse.Namespace) -> int:
     from harness.objects.registry import object_names
     from harness.studies.work_precision import PENDULUMS
     known = list(object_names())
-    objects = args.objects or (list(PENDULUMS) if args.kind == "work-precision" else known)
+    objects = list(dict.fromkeys(args.objects or (list(PENDULUMS) if args.kind == "work-precision" else known)))
     unknown = sorted(set(objects) - set(known))
     if unknown:
         raise HarnessError(f"--objects: {', '.join(unknown)} is not one of {', '.join(known)}")
@@ -238,9 +239,10 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--step", type=positive_number, default=0.01, help="communication step [s] (default 0.01)")
     p.add_argument("--solver", help="integration method (euler ... ab6; default rk4)")
     p.add_argument("--h", type=positive_number, help="internal step [s]")
+    p.add_argument("--quiet", action="store_true", help="no progress lines on stderr during a long run")
     p.add_argument("--set", action="append", default=[], metavar="NAME=VALUE", help="start value or parameter")
     p.add_argument("--out", default="result.csv", help="CSV file to write")
-    p.add_argument("--plot", help="PNG file for the trace of the moving mass")
+    p.add_argument("--plot", help="picture of the trace of the moving mass (.png, .svg or .pdf)")
     p.set_defaults(run=command_simulate)
 
     p = sub.add_parser("run", help="co-simulate a system (SSP .ssp/.ssd/folder or a scene .json), write CSV")
@@ -309,16 +311,29 @@ def main(argv: list[str] | None = None) -> int:
     traceback only with PENDULUM_TRACEBACK=1."""
     import os
     import signal
+    import warnings
 
-    def terminate(signum, frame):
-        raise KeyboardInterrupt
-    previous = signal.signal(signal.SIGTERM, terminate) if threading_main() else None
+    stopping = []
+
+    def interrupt_once(signum, frame):
+        """The first Ctrl-C or SIGTERM interrupts; later ones are ignored, so that the clean-up
+        they started (rows kept, temporary files removed, workers ended) is not cut short."""
+        if not stopping:
+            stopping.append(signum)
+            raise KeyboardInterrupt
+    # a SIGINT ignored by whoever started us (a background job) stays ignored
+    handled = [signum for signum in (signal.SIGINT, signal.SIGTERM)
+               if signum == signal.SIGTERM or signal.getsignal(signum) is not signal.SIG_IGN] if threading_main() else []
+    previous = {signum: signal.signal(signum, interrupt_once) for signum in handled}
     try:
         try:
             args = build_parser().parse_args(argv)
         except SystemExit as stop:  # usage errors (2) and --help (0): returned, as every other outcome
             return stop.code if isinstance(stop.code, int) else 2
-        return args.run(args)
+        with warnings.catch_warnings():
+            if os.environ.get("PENDULUM_TRACEBACK") != "1":  # numpy's and matplotlib's notes are not for users
+                warnings.simplefilter("ignore")
+            return args.run(args)
     except HarnessError as error:
         return _report("error", str(error), 2)
     except KeyboardInterrupt:
@@ -337,8 +352,8 @@ def main(argv: list[str] | None = None) -> int:
         return _report("internal error", f"{type(error).__name__}: {error} (set PENDULUM_TRACEBACK=1 for the "
                        "traceback and report it)", 3)
     finally:
-        if previous is not None:
-            signal.signal(signal.SIGTERM, previous)
+        for signum, handler in previous.items():
+            signal.signal(signum, handler)
 
 
 def threading_main() -> bool:

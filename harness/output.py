@@ -8,29 +8,52 @@ their rows: each renames its own complete file, and the last one wins.
 """
 from __future__ import annotations
 
+import csv
+import io
 import os
+import stat
 import tempfile
 from collections.abc import Iterator
 from contextlib import contextmanager
 from pathlib import Path
-from typing import TextIO
+from typing import IO
 
 from harness.errors import HarnessError
 
 
-def output_file(text: str | Path, option: str, inputs: tuple[str | Path | None, ...] = ()) -> Path:
-    """The path of a file to write, refused at once if it cannot be one: a folder, a parent that is
-    a file, or one of the command's own inputs."""
+PICTURE_FORMATS = (".png", ".svg", ".pdf")
+
+
+def output_file(text: str | Path, option: str, inputs: tuple[str | Path | None, ...] = (),
+                formats: tuple[str, ...] | None = None, outputs: dict[str, Path] | None = None) -> Path:
+    """The path of a file to write, refused at once if it cannot be one: a folder, a device, a parent
+    that is a file, one of the command's inputs or a file inside an input folder, another output of
+    the same command (`outputs`, by option), or (with `formats`) a name without one of those
+    suffixes. A symbolic link is written through: the file it names is replaced, the link stays."""
     path = Path(text)
     if str(text) == "" or path.name in ("", ".", ".."):
         raise HarnessError(f"{option} {str(text)!r}: names no file")
+    if formats is not None and path.suffix.lower() not in formats:
+        raise HarnessError(f"{option} {path}: the file name must end in {', '.join(formats)}")
+    if path.is_symlink():
+        path = path.resolve()
     if path.is_dir():
         raise HarnessError(f"{option} {path}: is a folder, not a file")
     if path.exists() and not path.is_file():  # a device such as /dev/null would be replaced by the rename
         raise HarnessError(f"{option} {path}: is not a regular file (a device, pipe or socket); choose a file")
+    target = path.resolve()
     for given in inputs:
-        if given is not None and Path(given).exists() and path.exists() and path.resolve() == Path(given).resolve():
+        if given is None or str(given) == "":
+            continue
+        source = Path(given).resolve()
+        if target == source:
             raise HarnessError(f"{option} {path}: is this command's input; choose another file")
+        if source.is_dir() and path.exists() and target.is_relative_to(source):
+            raise HarnessError(f"{option} {path}: is a file of this command's input folder {given}; "
+                               "choose another file")
+    for other, taken in (outputs or {}).items():
+        if target == Path(taken).resolve():
+            raise HarnessError(f"{option} {path}: is already the {other} file; choose another file")
     if path.suffix.lower() in (".fmu", ".ssp", ".ssd", ".json", ".toml") and path.exists():
         raise HarnessError(f"{option} {path}: is an existing {path.suffix} input file; choose another file")
     _check_parents(path, option)
@@ -58,14 +81,22 @@ def output_folder(text: str | Path, option: str) -> Path:
     return path
 
 
+def csv_header(columns: list[str]) -> str:
+    """A CSV header line: names holding a comma, quote or line break (an FMU's structured names such
+    as a[1,2]) are quoted as RFC 4180 says, so that the header keeps one cell per column."""
+    buffer = io.StringIO()
+    csv.writer(buffer, lineterminator="\n").writerow(columns)
+    return buffer.getvalue()
+
+
 class _Sink:
     """The temporary file's stream; a failed write marks the file as lost."""
 
-    def __init__(self, path: Path, stream: TextIO):
+    def __init__(self, path: Path, stream: IO):
         self.path, self.stream, self.failed = path, stream, False
         self.writes = 0  # calls of write() after the header
 
-    def write(self, text: str) -> None:
+    def write(self, text: str | bytes) -> None:
         self.writes += 1
         try:
             self.stream.write(text)
@@ -75,15 +106,17 @@ class _Sink:
 
 
 @contextmanager
-def written(path: Path, header: str | None = None) -> Iterator[_Sink]:
+def written(path: Path, header: str | None = None, binary: bool = False) -> Iterator[_Sink]:
     """A text sink whose content replaces `path` when the block ends (see the module's note). When
     the block fails before anything but the header was written, `path` is left as it was."""
     try:
         path.parent.mkdir(parents=True, exist_ok=True)
-        descriptor, temporary = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".part", dir=path.parent)
+        # a short prefix: the temporary name must fit where the target's own name just fits
+        descriptor, temporary = tempfile.mkstemp(prefix=f".{path.name[:40]}.", suffix=".part", dir=path.parent)
+        os.fchmod(descriptor, _mode_for(path))
     except OSError as error:
         raise HarnessError(f"{path}: cannot write here ({error.strerror})") from None
-    sink = _Sink(path, os.fdopen(descriptor, "w", newline="\n"))
+    sink = _Sink(path, os.fdopen(descriptor, "wb" if binary else "w", **({} if binary else {"newline": "\n"})))
     try:
         if header is not None:
             sink.write(header)
@@ -95,6 +128,25 @@ def written(path: Path, header: str | None = None) -> Iterator[_Sink]:
         raise
     finally:
         _finish(sink, temporary)
+
+
+def _mode_for(path: Path) -> int:
+    """The permissions a plain open() would give: those of the file replaced, else 0666 less the
+    umask (mkstemp makes its file 0600)."""
+    try:
+        return stat.S_IMODE(path.stat().st_mode)
+    except OSError:
+        mask = os.umask(0o022)
+        os.umask(mask)
+        return 0o666 & ~mask
+
+
+def write_figure(figure, path: Path, dpi: int = 110) -> None:
+    """A matplotlib figure, rendered in memory and written like every output (see written())."""
+    buffer = io.BytesIO()
+    figure.savefig(buffer, format=path.suffix.lstrip(".").lower(), dpi=dpi)
+    with written(path, binary=True) as sink:
+        sink.write(buffer.getvalue())
 
 
 def _finish(sink: _Sink, temporary: str) -> None:

@@ -207,3 +207,85 @@ def test_the_master_frees_every_fmu_state(fmu_paths):
             held = [unit.instance.log.live_blocks for unit in master.units]
             assert all(blocks >= 3 for blocks in held), held  # the instance and its two saved states
         assert [unit.instance.log.live_blocks for unit in master.units] == [0] * len(master.units)
+
+
+def started(args: list[str], scratch: Path, env: dict | None = None) -> subprocess.Popen:
+    """The harness in a process of its own, with its temporary files in `scratch`."""
+    return subprocess.Popen([sys.executable, "-m", "harness", *args], stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                            text=True, env={**os.environ, "TMPDIR": str(scratch), **(env or {})},
+                            preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
+
+
+def wait_for(condition, seconds: float = 120) -> None:
+    deadline = time.monotonic() + seconds
+    while not condition():
+        assert time.monotonic() < deadline, "the run never reached the point to interrupt"
+        time.sleep(0.05)
+
+
+def processes_naming(text: str) -> list[str]:
+    """Command lines of the running processes that mention text (a folder only our run uses)."""
+    found = []
+    for entry in Path("/proc").iterdir():
+        try:
+            line = (entry / "cmdline").read_bytes().replace(b"\0", b" ").decode(errors="replace")
+        except OSError:
+            continue
+        if entry.name.isdigit() and text in line:
+            found.append(line)
+    return found
+
+
+def ended_cleanly(process: subprocess.Popen, scratch: Path) -> None:
+    stdout, stderr = process.communicate(timeout=60)  # ends in seconds, though items or tools were mid-way
+    assert process.returncode == 130 and stderr.strip().splitlines()[-1] == "harness: interrupted", stderr
+    time.sleep(0.5)
+    assert processes_naming(str(scratch)) == []
+    assert list(scratch.iterdir()) == []
+
+
+def test_an_interrupted_plan_ends_its_workers_and_their_files(fmu_paths, tmp_path):
+    scratch = tmp_path / "scratch"
+    scratch.mkdir()
+    process = started(["plan", str(PROJECT_ROOT / "scenes" / "thesis_scene.json"), "--workers", "2"], scratch)
+    wait_for(lambda: any(p.name.startswith("sweep-") and any(p.iterdir()) for p in scratch.iterdir()))
+    time.sleep(1.0)
+    process.send_signal(signal.SIGINT)
+    ended_cleanly(process, scratch)
+
+
+def test_an_interrupted_derive_ends_the_compiler(tmp_path):
+    scratch = tmp_path / "scratch"
+    scratch.mkdir()
+    process = started(["derive", str(PROJECT_ROOT / "modelDescription" / "DoublePendulum.toml"), "--out",
+                       str(tmp_path / "out")], scratch)
+    wait_for(lambda: processes_naming(f"{scratch}/program-") and any("cc1" in p for p in processes_naming(str(scratch))))
+    process.send_signal(signal.SIGTERM)
+    ended_cleanly(process, scratch)
+    assert not list((tmp_path / "out").glob("*.fmu"))
+
+
+def test_an_interrupted_build_ends_make(tmp_path):
+    """The FMUs built on demand into an empty build folder: an interrupt ends cmake, make and the compilers."""
+    scratch, build = tmp_path / "scratch", tmp_path / "build"
+    scratch.mkdir()
+    process = started(["simulate", "SimplePendulum", "--out", str(tmp_path / "x.csv")], scratch,
+                      {"PENDULUM_BUILD_DIR": str(build), "PENDULUM_SKIP_BUILD": "0"})
+    wait_for(lambda: any("cc1" in p for p in processes_naming(str(build))))
+    process.send_signal(signal.SIGTERM)
+    ended_cleanly(process, scratch)
+    assert processes_naming(str(build)) == []
+
+
+def test_a_second_interrupt_does_not_cut_the_clean_up_short(fmu_paths, tmp_path):
+    scratch = tmp_path / "scratch"
+    scratch.mkdir()
+    out = tmp_path / "long.csv"
+    process = started(["simulate", "SimplePendulum", "--stop", "2000", "--step", "0.001", "--h", "1e-5", "--quiet",
+                       "--out", str(out)], scratch)
+    wait_for(lambda: list(scratch.iterdir()))
+    time.sleep(1.0)
+    for _ in range(3):
+        process.send_signal(signal.SIGTERM)
+    ended_cleanly(process, scratch)
+    assert len(out.read_text().splitlines()) > 10

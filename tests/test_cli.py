@@ -83,3 +83,26 @@ def test_validate_passes_our_fmu_and_fails_a_broken_one(fmu_paths, tmp_path):
             target.writestr(item, data)
     result = harness("validate", str(broken))
     assert result.returncode == 1 and "FAIL  modelDescription (fmpy)" in result.stdout
+
+
+def test_a_long_run_reports_its_progress(capsys, monkeypatch):
+    """Where the run is and the time left, from the elapsed time and the fraction done."""
+    from harness.fmi import simulation
+    clock = iter([100.0, 103.0, 103.5, 110.0])
+    monkeypatch.setattr(simulation.time, "monotonic", lambda: next(clock))
+    progress = simulation.Progress(stop=50.0)  # started at 100 s
+    progress(12.5, 0.25)   # 103 s: 3 s for a quarter, 9 s left
+    progress(13.0, 0.26)   # 103.5 s: within two seconds of the last line, nothing
+    progress(25.0, 0.5)    # 110 s: 10 s for half, 10 s left
+    lines = capsys.readouterr().err.splitlines()
+    assert lines == ["  t = 12.5 of 50 s (25%, about 9 s left)", "  t = 25 of 50 s (50%, about 10 s left)"]
+
+
+def test_charts_take_each_object_once(fmu_paths, tmp_path):
+    rows = {}
+    for objects in (["SimplePendulum"], ["SimplePendulum", "SimplePendulum"]):
+        out = tmp_path / str(len(objects))
+        result = harness("chart", "stability", "--quick", "--workers", "2", "--objects", *objects, "--out", str(out))
+        assert result.returncode == 0, result.stderr
+        rows[len(objects)] = len((out / "stability.csv").read_text().splitlines())
+    assert rows[1] == rows[2] > 10

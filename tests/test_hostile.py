@@ -203,7 +203,8 @@ def test_unknown_commands_and_options(workspace):
 # ---- scene files ------------------------------------------------------------------------------
 
 json_values = st.recursive(
-    st.one_of(st.none(), st.booleans(), st.integers(-2**70, 2**70), st.floats(allow_nan=True, allow_infinity=True),
+    st.one_of(st.none(), st.booleans(), st.integers(-2**70, 2**70), st.sampled_from([10**400, -10**309, 10**4000]),
+              st.floats(allow_nan=True, allow_infinity=True),
               st.text(max_size=8), st.sampled_from(["SimplePendulum", "Spring", "left.x", "rk4", "a,b", "x\ny"])),
     lambda children: st.one_of(st.lists(children, max_size=3), st.dictionaries(st.text(max_size=6), children,
                                                                                 max_size=3)),
@@ -565,3 +566,185 @@ def assert_finite_when_ok(fmu: FmuInstance) -> None:
         if fmu.call("fmi2GetRealOutputDerivatives", (ctypes.c_uint * n)(*outputs), n, (ctypes.c_int * n)(*[1] * n),
                     slopes) == OK:
             assert all(math.isfinite(x) for x in slopes), list(slopes)
+
+
+# ---- SSP features the harness does not carry out, and files it must not read -----------------
+
+FIRST_CONNECTION = '<ssd:Connection startElement="left" startConnector="x" endElement="spring" endConnector="a_x"/>'
+FIRST_VALUES_END = "</ssd:ParameterValues>"
+SSM = "http://ssp-standard.org/SSP1/SystemStructureParameterMapping"
+SSD_EDITS = {
+    "linear transformation": (FIRST_CONNECTION, FIRST_CONNECTION[:-2] + '><ssc:LinearTransformation factor="2"/>'
+                              "</ssd:Connection>", "has a LinearTransformation, which is not supported"),
+    "parameter mapping": (FIRST_VALUES_END, FIRST_VALUES_END + f'<ssd:ParameterMapping><ssm:ParameterMapping '
+                          f'xmlns:ssm="{SSM}" version="1.0"><ssm:MappingEntry source="a" target="k"/>'
+                          "</ssm:ParameterMapping></ssd:ParameterMapping>", "ParameterMapping, which is not supported"),
+    "nested system": ("</ssd:Elements>", '<ssd:System name="inner"/></ssd:Elements>',
+                      "only FMU components are supported"),
+    "binding of no component": ("<ssd:Elements>", '<ssd:ParameterBindings><ssd:ParameterBinding><ssd:ParameterValues>'
+                                '<ssv:ParameterSet version="1.0" name="s"><ssv:Parameters><ssv:Parameter name="ghost.k">'
+                                '<ssv:Real value="1"/></ssv:Parameter></ssv:Parameters></ssv:ParameterSet>'
+                                "</ssd:ParameterValues></ssd:ParameterBinding></ssd:ParameterBindings><ssd:Elements>",
+                                "system parameter 'ghost.k' names no component's variable"),
+    "parameter without a name": ('<ssv:Parameter name="k">', "<ssv:Parameter>", "a parameter without a name"),
+    "system connector": (FIRST_CONNECTION, FIRST_CONNECTION.replace('startElement="left" ', ""),
+                         "joins a connector of the system itself"),
+}
+
+
+@pytest.mark.parametrize("edit", sorted(SSD_EDITS))
+@pytest.mark.parametrize("packed", [False, True])
+def test_unsupported_ssp_features_are_refused(workspace, edit, packed):
+    """Each edit is valid SSP 1.0; each is refused by name, never ignored."""
+    old, new, words = SSD_EDITS[edit]
+    text = (ssp_folder() / "SystemStructure.ssd").read_text()
+    assert old in text
+    index = next(counter)
+    folder = workspace / f"feature{index}"
+    shutil.copytree(ssp_folder(), folder)
+    (folder / "SystemStructure.ssd").write_text(text.replace(old, new, 1))
+    target = folder
+    if packed:
+        target = Path(shutil.make_archive(str(folder), "zip", folder)).rename(folder.with_suffix(".ssp"))
+    outcome = cli(["run", str(target), "--stop", "0.05", "--step", "0.01", "--out", str(workspace / "f.csv"),
+                   "--quiet"], workspace)
+    assert outcome.code == 2 and words in outcome.stderr, outcome
+
+
+@pytest.mark.timeout(60)  # a pipe that is opened blocks: this bound turns a regression into a failure
+def test_only_regular_files_are_read(workspace):
+    """A pipe among the folder's .ssv files is not opened unless the SSD names one; a named one, or
+    a scene file that is a pipe, is refused."""
+    import os
+    folder = workspace / f"pipes{next(counter)}"
+    shutil.copytree(ssp_folder(), folder)
+    os.mkfifo(folder / "resources" / "stray.ssv")
+    args = ["--stop", "0.05", "--step", "0.01", "--out", str(workspace / "p.csv"), "--quiet"]
+    assert cli(["run", str(folder), *args], workspace).code == 0
+    ssd = folder / "SystemStructure.ssd"
+    ssd.write_text(ssd.read_text().replace("<ssd:ParameterBindings>", '<ssd:ParameterBindings><ssd:ParameterBinding '
+                                          'source="resources/stray.ssv"/>', 1))
+    outcome = cli(["run", str(folder), *args], workspace)
+    assert outcome.code == 2 and "'resources/stray.ssv': not found or not a regular file" in outcome.stderr, outcome
+    os.mkfifo(workspace / "pipe.json")
+    outcome = cli(["run", str(workspace / "pipe.json"), *args], workspace)
+    assert outcome.code == 2 and "is not a regular file or a folder" in outcome.stderr, outcome
+
+
+# ---- outputs and the files of an input folder ---------------------------------------------------
+
+def test_outputs_never_replace_an_input(workspace):
+    folder = workspace / f"inputs{next(counter)}"
+    shutil.copytree(ssp_folder(), folder)
+    (folder / "notes.txt").write_text("mine")
+    before = {p: p.read_bytes() for p in folder.rglob("*") if p.is_file()}
+    for target in (folder / "notes.txt", folder / "resources" / "Spring.fmu", folder / "SystemStructure.ssd"):
+        outcome = cli(["run", str(folder), "--stop", "0.05", "--step", "0.01", "--out", str(target), "--quiet"],
+                      workspace)
+        assert outcome.code == 2 and str(target) in outcome.stderr, outcome
+    assert {p: p.read_bytes() for p in folder.rglob("*") if p.is_file()} == before
+    fresh = folder / "result.csv"  # a new file beside the inputs is fine
+    assert cli(["run", str(folder), "--stop", "0.05", "--step", "0.01", "--out", str(fresh), "--quiet"],
+               workspace).code == 0
+    simulate = ["simulate", "SimplePendulum", "--stop", "0.05", "--out", str(workspace / "same.png")]
+    outcome = cli([*simulate, "--plot", str(workspace / "same.png")], workspace)
+    assert outcome.code == 2 and "is already the --out file" in outcome.stderr, outcome
+    outcome = cli([*simulate, "--plot", str(workspace / "trace.csv")], workspace)
+    assert outcome.code == 2 and "must end in .png, .svg, .pdf" in outcome.stderr, outcome
+
+
+def test_outputs_are_plain_files_through_links(workspace):
+    """Written with the permissions open() would give, through a symbolic link (the link stays), and
+    under a name as long as the file system allows."""
+    import os
+    import stat
+    target = workspace / "linked_target.csv"
+    target.write_text("old")
+    link = workspace / "link.csv"
+    link.symlink_to(target.name)
+    plot = workspace / "trace.svg"
+    assert cli(["simulate", "SimplePendulum", "--stop", "0.05", "--out", str(link), "--plot", str(plot)],
+               workspace).code == 0
+    assert link.is_symlink() and well_formed_csv(target) == 6
+    assert plot.read_bytes().lstrip().startswith(b"<?xml")
+    mask = os.umask(0)
+    os.umask(mask)
+    for path in (target, plot):
+        assert stat.S_IMODE(path.stat().st_mode) == 0o666 & ~mask, oct(path.stat().st_mode)
+    long_name = workspace / ("n" * 251 + ".csv")
+    assert cli(["simulate", "SimplePendulum", "--stop", "0.05", "--out", str(long_name)], workspace).code == 0
+    assert well_formed_csv(long_name) == 6
+
+
+# ---- values valid in form that the harness could not carry out ------------------------------------
+
+def scene_with(workspace: Path, change) -> Path:
+    scene = json.loads((PROJECT_ROOT / "scenes" / "thesis_scene.json").read_text())
+    change(scene)
+    path = workspace / f"thesis{next(counter)}.json"
+    path.write_text(json.dumps(scene))
+    return path
+
+
+@pytest.mark.parametrize("change,words", [
+    (lambda s: s.update(stop=int("9" * 400)), '"stop" = inf must be a positive finite number'),
+    (lambda s: s["components"]["simple"]["start"].update(phi=-int("9" * 400)), "'phi' = -inf is not a finite number"),
+    (lambda s: s["components"]["simple"].update(traces=[["nope", "y"]]), "a trace names 'nope', which is not an output"),
+    (lambda s: s["camera"].update(frame_rate=1e300), "frames; lower the camera's frame rate"),
+    (lambda s: s["camera"].update(frame_rate=1e-300), "is longer than the 0.2 s planned")])
+def test_plans_of_scenes_that_cannot_be_carried_out(workspace, change, words):
+    outcome = cli(["plan", str(scene_with(workspace, change)), "--duration", "0.2", "--workers", "1"], workspace)
+    assert outcome.code == 2 and words in outcome.stderr, outcome
+
+
+def test_a_table_too_large_to_hold_is_refused(workspace):
+    outcome = cli(["simulate", "DoublePendulum", "--stop", "1e5", "--step", "0.01", "--out", str(workspace / "t.csv")],
+                  workspace)
+    assert outcome.code == 2 and "more than the 1e+08 allowed" in outcome.stderr, outcome
+
+
+def test_an_atlas_of_objects_without_a_linear_model(workspace):
+    outcome = cli(["chart", "stability", "--objects", "KapitzaPendulum", "--quick", "--out",
+                   str(workspace / "atlas")], workspace)
+    assert outcome.code == 2 and "no linear model to measure a stability limit on" in outcome.stderr, outcome
+
+
+# ---- FMUs whose binary or names would break the harness -------------------------------------------
+
+def edited_fmu(source: Path, target: Path, edit) -> Path:
+    """A copy of the FMU with edit(name, data) -> data applied to each member."""
+    with zipfile.ZipFile(source) as original, zipfile.ZipFile(target, "w") as copy:
+        for item in original.infolist():
+            copy.writestr(item, edit(item.filename, original.read(item)))
+    return target
+
+
+@pytest.mark.parametrize("edit,words", [
+    (lambda name, data: data[:20000] if name.endswith(".so") else data, "is truncated (20000 bytes"),
+    (lambda name, data: data[:40] if name.endswith(".so") else data, "is not an ELF shared library"),
+    (lambda name, data: data.replace(b'modelIdentifier="SimplePendulum"', b'modelIdentifier="../../x"'),
+     "modelIdentifier '../../x' is not a C identifier")])
+def test_binaries_that_cannot_be_loaded_safely(workspace, fmu_paths, edit, words):
+    """A truncated library would be a bus error at load (the process killed, its temporary folders left)."""
+    fmu = edited_fmu(fmu_paths["SimplePendulum"], workspace / f"bad{next(counter)}.fmu", edit)
+    outcome = cli(["simulate", str(fmu), "--stop", "0.05", "--out", str(workspace / "b.csv")], workspace)
+    assert outcome.code == 2 and words in outcome.stderr, outcome
+
+
+def test_structured_variable_names_keep_the_csv_in_shape(workspace, fmu_paths):
+    """FMI allows any text as a name (a[1,2] in structured naming); the header quotes it as RFC 4180 says."""
+    import csv
+    names = {b'name="x"': 'a[1,2]', b'name="y"': 'say "y"', b'name="v_x"': "two\nlines"}
+
+    def rename(member: str, data: bytes) -> bytes:
+        if member == "modelDescription.xml":
+            for old, new in names.items():
+                data = data.replace(old, b'name="' + new.replace('"', "&quot;").replace("\n", "&#10;").encode() + b'"')
+        return data
+    fmu = edited_fmu(fmu_paths["SimplePendulum"], workspace / "structured.fmu", rename)
+    out = workspace / "structured.csv"
+    assert cli(["simulate", str(fmu), "--stop", "0.05", "--out", str(out)], workspace).code == 0
+    with out.open(newline="") as stream:
+        rows = list(csv.reader(stream))
+    assert set(names.values()) <= set(rows[0]) and all(len(row) == len(rows[0]) for row in rows[1:])
+    assert len(rows) == 7 and all(math.isfinite(float(cell)) for row in rows[1:] for cell in row)

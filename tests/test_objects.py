@@ -58,6 +58,7 @@ def write(tmp_path: Path, text: str, name: str = "CartPendulumTest.toml") -> Pat
     ('push = { point = "cart" }', 'push = { point = "wheel" }', "forces.push.point", "'wheel' is not one of"),
     ('cart = { x = "x", y = "0" }', 'cart = { x = "x", y = "0", names = { x = "E" } }', "points.cart.names.x",
      "every object already has"),
+    ('[parameters]', 'require = ["0"]\n[parameters]', "require[0]", "depends on no parameter or coordinate"),
 ])
 def test_a_bad_object_file_gets_one_line_naming_file_key_and_problem(tmp_path, old, new, key, problem):
     assert old in CART_PENDULUM

@@ -14,18 +14,16 @@ from __future__ import annotations
 
 import ctypes
 import math
-import sys
-import time
 from dataclasses import dataclass, field
 from typing import Callable
 
 import numpy as np
 
 from harness.cosim.structure import System
-from harness.errors import HarnessError
+from harness.errors import HarnessError, where
 from harness.fmi.fmu_instance import DISCARD, ERROR, OK, STATUS_NAMES, FmuInstance
 from harness.fmi.results import TimeTable
-from harness.fmi.simulation import communication_grid
+from harness.fmi.simulation import Progress, check_table_size, communication_grid
 
 ALGORITHMS = ("jacobi", "gauss-seidel")
 EXTRAPOLATIONS = ("hold", "linear")
@@ -160,9 +158,10 @@ class Master:
             raise HarnessError(f"system {system.name!r}: component names must be unique")
         self.units: list[_Unit] = []
         try:  # whatever fails while setting up, the instances made so far are freed
-            for component in system.components:
-                self.units.append(_Unit(component, system))
-            self._route()
+            with where(system.origin, system.workspace):
+                for component in system.components:
+                    self.units.append(_Unit(component, system))
+                self._route()
         except BaseException:
             self.free()
             raise
@@ -202,7 +201,8 @@ class Master:
             inst = unit.instance
             inst._require(inst.call("fmi2SetupExperiment", 0, 0.0, ctypes.c_double(self.options.start), 0, 0.0),
                           "fmi2SetupExperiment")
-            inst._require(inst.set(**unit.start), "setting start values")
+            with where(self.system.origin, self.system.workspace), where(f"component {unit.name!r}"):
+                inst._require(inst.set(**unit.start), "setting start values")
             inst._require(inst.call("fmi2EnterInitializationMode"), "fmi2EnterInitializationMode")
         # Copy connected outputs to inputs until they settle, so that forces at t = 0 are consistent.
         for _ in range(50):
@@ -402,12 +402,13 @@ class Master:
         options = self.options
         grid = communication_grid(options.start, options.stop, options.step)
         columns = self.columns
+        check_table_size(len(grid), len(columns))
         table = np.empty((len(grid), len(columns)))
         energy = np.empty(len(grid))
         has_energy = any(u.energy_index is not None for u in self.units)
         stopped_at, message, retries, rows = None, None, 0, 0
         self._initialize()
-        last_report = time.monotonic()
+        progress = Progress(options.stop) if options.progress else None
 
         def record(t: float) -> None:
             table[rows, 0] = t
@@ -462,10 +463,8 @@ class Master:
                            + (f" even with {2 ** options.max_halvings}x smaller steps" if options.on_discard == "retry"
                               else "") + f": {culprit.instance.last_message()}")
                 break
-            if options.progress and time.monotonic() - last_report > 2.0:
-                last_report = time.monotonic()
-                print(f"  t = {grid[k + 1]:.4g} of {options.stop:g} s ({100 * (k + 1) / (len(grid) - 1):.0f}%)",
-                      file=sys.stderr)
+            if progress is not None:
+                progress(grid[k + 1], (k + 1) / (len(grid) - 1))
         messages = [f"{u.name}: {m}" for u in self.units for m in u.instance.log.messages]
         return CoSimulationResult(columns, table[:rows], energy[:rows], stopped_at, message, self.macro_steps,
                                   retries, messages, self.iterations, self.unconverged)
@@ -513,7 +512,8 @@ class Master:
         rows_done, culprit = ctypes.c_long(), ctypes.c_int()
 
         def run(grid: np.ndarray, on_row) -> tuple[int, int, int]:
-            chunk, first, last_report = 20000, 0, time.monotonic()
+            chunk, first = 20000, 0
+            progress = Progress(self.options.stop) if self.options.progress else None
             while True:
                 end = min(first + chunk, len(grid) - 1)
                 part = np.ascontiguousarray(grid[first:end + 1])
@@ -528,10 +528,8 @@ class Master:
                 if status != OK or end == len(grid) - 1:
                     return rows, DISCARD if status == DISCARD else status, culprit.value
                 first = end
-                if self.options.progress and time.monotonic() - last_report > 2.0:
-                    last_report = time.monotonic()
-                    print(f"  t = {grid[first]:.4g} of {self.options.stop:g} s "
-                          f"({100 * first / (len(grid) - 1):.0f}%)", file=sys.stderr)
+                if progress is not None:
+                    progress(grid[first], first / (len(grid) - 1))
 
         self._keep_alive = (structs, keep, stepped)
         return run

@@ -121,13 +121,27 @@ def read_json(path: Path) -> object:
     except UnicodeDecodeError as error:
         raise HarnessError(f"{path}: not UTF-8 text (byte {error.start})") from None
     try:
-        return json.loads(text, parse_constant=_no_constants, object_pairs_hook=_unique_keys)
+        return json.loads(text, parse_constant=_no_constants, parse_int=_whole_number, object_pairs_hook=_unique_keys)
     except json.JSONDecodeError as error:
         raise HarnessError(f"{path}: not valid JSON (line {error.lineno}, column {error.colno}: {error.msg})") from None
     except ValueError as error:
         raise HarnessError(f"{path}: {error}") from None
     except RecursionError:
         raise HarnessError(f"{path}: nested too deeply to be a scene file") from None
+
+
+def _check_traces(fmu: Path, pairs: list[tuple[str, str]], where: str, read: _Reader) -> None:
+    from harness.fmi.fmu_instance import read_fmi2_description
+    outputs = [v.name for v in read_fmi2_description(fmu).modelVariables if v.causality == "output"]
+    for name in (name for pair in pairs for name in pair):
+        if name not in outputs:
+            raise read.fail(where, f"names {name!r}, which is not an output of {fmu.name} "
+                                   f"(outputs: {', '.join(outputs)})")
+
+
+def _whole_number(digits: str) -> int | float:
+    """A JSON integer; one too long for a float becomes infinity, which the schema refuses by name."""
+    return int(digits) if len(digits) <= 300 else float(digits)
 
 
 def _split(reference: str, where: str, read: _Reader) -> tuple[str, str]:
@@ -173,6 +187,7 @@ def load_scene_file(path: Path) -> System:
             if not isinstance(spec["traces"], list):
                 raise read.fail(f"{where}: \"traces\"", f"must be a list of column pairs, not {_kind(spec['traces'])}")
             traces[component_name] = [read.pair(p, f"{where}: a trace") for p in spec["traces"]]
+            _check_traces(fmu, traces[component_name], f"{where}: a trace", read)
     connections = []
     pairs = data.get("connections", [])
     if not isinstance(pairs, list):

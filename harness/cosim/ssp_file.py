@@ -16,7 +16,7 @@ import xml.etree.ElementTree as ET
 import zipfile
 from pathlib import Path, PurePosixPath
 
-from harness.archives import extract_members, name_problem, open_archive, read_member
+from harness.archives import MAX_BYTES, MAX_READ, extract_members, name_problem, open_archive, read_member
 from harness.cosim.structure import Component, Connection, System
 from harness.errors import HarnessError
 
@@ -38,25 +38,51 @@ def _in_memory_ssd(files: dict[str, bytes]) -> io.BytesIO:
     return buffer
 
 
+def _referenced(ssd_bytes: bytes, what: str) -> list[str]:
+    """The parameter files (.ssv, .ssm) that the SSD's bindings name: the only ones read."""
+    try:
+        root = ET.fromstring(ssd_bytes)
+    except ET.ParseError as error:
+        raise HarnessError(f"{what}: malformed SSD ({error})") from None
+    names = [element.get("source") for element in root.iter()
+             if element.tag.endswith(("}ParameterBinding", "}ParameterMapping")) and element.get("source")]
+    return list(dict.fromkeys(names))
+
+
+def _checked_total(files: dict[str, bytes], what: str) -> dict[str, bytes]:
+    if sum(map(len, files.values())) > MAX_BYTES:
+        raise HarnessError(f"{what}: the SSD and its parameter files hold more than {MAX_BYTES} bytes (the bound)")
+    return files
+
+
 def _ssd_files_from_archive(archive: zipfile.ZipFile, what: str) -> dict[str, bytes]:
     if SSD not in archive.namelist():
         raise HarnessError(f"{what}: no {SSD} in the archive")
     files = {SSD: read_member(archive, SSD, what)}
-    for name in archive.namelist():
-        if name.endswith((".ssv", ".ssm")):
-            files[name] = read_member(archive, name, what)
+    for name in _referenced(files[SSD], what):
+        if name not in archive.namelist():
+            raise HarnessError(f"{what}: parameter file {name!r} named by the SSD is not in the archive")
+        files[name] = read_member(archive, name, what)
+        _checked_total(files, what)
     return files
 
 
 def _ssd_files_from_folder(root: Path, ssd: Path) -> dict[str, bytes]:
-    def read(path: Path) -> bytes:
+    def read(path: Path, what: str) -> bytes:
+        if not path.is_file():  # a pipe or device would block or never end
+            raise HarnessError(f"{what}: not found or not a regular file")
         try:
-            return path.read_bytes()
+            with path.open("rb") as stream:
+                data = stream.read(MAX_READ + 1)
         except OSError as error:
-            raise HarnessError(f"{path}: cannot read ({error.strerror})") from None
-    files = {SSD: read(ssd)}
-    for extra in root.rglob("*.ss[vm]"):  # parameter values and mappings the SSD may reference
-        files[extra.relative_to(root).as_posix()] = read(extra)
+            raise HarnessError(f"{what}: cannot read ({error.strerror})") from None
+        if len(data) > MAX_READ:
+            raise HarnessError(f"{what}: more than {MAX_READ} bytes, too large")
+        return data
+    files = {SSD: read(ssd, str(ssd))}
+    for name in _referenced(files[SSD], str(ssd)):
+        files[name] = read(root / name, f"{ssd}: parameter file {name!r}")
+        _checked_total(files, str(ssd))
     return files
 
 
@@ -76,6 +102,8 @@ def _bound_values(element, what: str) -> dict[str, float | int | str]:
         prefix = binding.prefix or ""
         for parameter_set in binding.parameterValues:
             for parameter in parameter_set.parameters:
+                if not parameter.name:
+                    raise HarnessError(f"{what}: a parameter without a name")
                 name = parameter.name[len(prefix):] if prefix and parameter.name.startswith(prefix) else parameter.name
                 where = f"{what}: parameter {name!r}"
                 if parameter.type == "Real":
@@ -90,6 +118,24 @@ def _bound_values(element, what: str) -> dict[str, float | int | str]:
     return values
 
 
+TRANSFORMATIONS = ("LinearTransformation", "BooleanMappingTransformation", "IntegerMappingTransformation",
+                   "EnumerationMappingTransformation")
+
+
+def _refuse_transformations(ssd_bytes: bytes, what: str) -> None:
+    """Connections that transform what they carry (read from the XML: fmpy's reader misses them in
+    the namespace SSP 1.0 puts them in)."""
+    for connection in ET.fromstring(ssd_bytes).iter():
+        if not connection.tag.endswith("}Connection"):
+            continue
+        for child in connection:
+            kind = child.tag.rpartition("}")[2]
+            if kind in TRANSFORMATIONS:
+                raise HarnessError(f"{what}: connection {connection.get('startElement')}.{connection.get('startConnector')}"
+                                   f" -> {connection.get('endElement')}.{connection.get('endConnector')} has a {kind}, "
+                                   "which is not supported")
+
+
 def _experiment(ssd_bytes: bytes, what: str) -> float | None:
     """stopTime of the SSD's DefaultExperiment (fmpy's reader does not keep it)."""
     root = ET.fromstring(ssd_bytes)
@@ -99,8 +145,34 @@ def _experiment(ssd_bytes: bytes, what: str) -> float | None:
     return None
 
 
+FMU_TYPE = "application/x-fmu-sharedlibrary"
+
+
+def _refuse_unsupported(system, what: str) -> None:
+    """SSP features this harness does not carry out: refused rather than silently ignored."""
+    from fmpy.ssp.ssd import Component as SspComponent
+    for element in system.elements:
+        if not isinstance(element, SspComponent):
+            raise HarnessError(f"{what}: element {getattr(element, 'name', '')!r} is a {type(element).__name__}; "
+                               "only FMU components are supported (no nested systems or signal dictionaries)")
+        if element.type not in (None, FMU_TYPE):
+            raise HarnessError(f"{what}: component {element.name!r} has type {element.type!r}; only {FMU_TYPE} "
+                               "is supported")
+    if getattr(system, "signalDictionaries", None):
+        raise HarnessError(f"{what}: signal dictionaries are not supported")
+    for connection in system.connections:
+        if connection.startElement is None or connection.endElement is None:
+            raise HarnessError(f"{what}: connection {connection.startConnector} -> {connection.endConnector} "
+                               "joins a connector of the system itself; only components may be connected")
+    for holder in (system, *system.elements):
+        for binding in getattr(holder, "parameterBindings", []):
+            if binding.parameterMapping:
+                raise HarnessError(f"{what}: {getattr(holder, 'name', None) or 'the system'} has a "
+                                   "ParameterMapping, which is not supported")
+
+
 def load_ssp(path: Path) -> System:
-    from fmpy.ssp.ssd import Component as SspComponent, read_ssd
+    from fmpy.ssp.ssd import read_ssd
     what = str(path)
     is_archive = path.is_file() and path.suffix == ".ssp"
     if is_archive:
@@ -121,13 +193,19 @@ def load_ssp(path: Path) -> System:
     try:
         ssd = read_ssd(_in_memory_ssd(files))
         stop = _experiment(files[SSD], what)
+        _refuse_transformations(files[SSD], what)
     except HarnessError:
         raise
     except Exception as error:  # lxml, schema and reader errors come as several types
         raise HarnessError(f"{path}: malformed SSD ({_first_line(error)})") from None
     system = ssd.system
+    _refuse_unsupported(system, what)
     system_values = _bound_values(system, what)
-    elements = [e for e in system.elements if isinstance(e, SspComponent)]
+    elements = system.elements
+    for name in system_values:
+        if name.split(".", 1)[0] not in {e.name for e in elements} or "." not in name:
+            raise HarnessError(f"{what}: system parameter {name!r} names no component's variable "
+                               "(expected COMPONENT.VARIABLE)")
     sources = {}
     for element in elements:
         source = element.source or ""

@@ -20,6 +20,8 @@ def load_system(path: str | Path) -> System:
     path = Path(path)
     if not path.exists():
         raise HarnessError(f"{path}: no such file or folder")
+    if not (path.is_file() or path.is_dir()):  # reading a pipe or a device could block or never end
+        raise HarnessError(f"{path}: is not a regular file or a folder")
     if path.suffix == ".json":
         return load_scene_file(path)
     return load_ssp(path)

@@ -20,6 +20,7 @@ from fmpy.fmi1 import calloc, free
 
 from harness.archives import extract_fmu
 from harness.errors import HarnessError
+from harness.fmi.binaries import checked_identifier, elf_problem
 
 STATUS_NAMES = ("OK", "Warning", "Discard", "Error", "Fatal", "Pending")
 OK, WARNING, DISCARD, ERROR, FATAL = 0, 1, 2, 3, 4
@@ -155,9 +156,13 @@ class FmuInstance:
         interface = self.model_description.coSimulation if kind == "CS" else self.model_description.modelExchange
         if interface is None:
             raise HarnessError(f"{self.path}: the FMU does not support {kind}")
-        library = Path(self.unzipdir) / "binaries" / "linux64" / f"{interface.modelIdentifier}.so"
+        identifier = checked_identifier(interface.modelIdentifier, str(self.path))
+        library = Path(self.unzipdir) / "binaries" / "linux64" / f"{identifier}.so"
         if not library.is_file():
             raise HarnessError(f"{self.path}: no binary for this platform (binaries/linux64/{library.name} is missing)")
+        problem = elf_problem(library)
+        if problem:
+            raise HarnessError(f"{self.path}: binaries/linux64/{library.name} {problem}")
         cls = FMU2Slave if kind == "CS" else FMU2Model
         try:
             fmu = cls(guid=self.model_description.guid, unzipDirectory=self.unzipdir,

@@ -9,6 +9,7 @@ from pathlib import Path
 
 from harness.errors import HarnessError
 from harness.objects.registry import PROJECT_ROOT, handwritten_names, object_names
+from harness.processes import run_program
 
 # Every object file in modelDescription/ and the hand-written models beside them.
 FMU_NAMES = object_names() + handwritten_names()
@@ -29,15 +30,14 @@ def build_fmus(quiet: bool = True) -> None:
     # lines about an interrupt never reach the terminal)
     output = subprocess.DEVNULL if quiet else None
     errors = subprocess.PIPE if quiet else None
-    try:
-        for command in (["cmake", "-S", str(PROJECT_ROOT), "-B", str(build_dir()), "-DCMAKE_BUILD_TYPE=Release",
-                         f"-DOBJECTS_PYTHON={sys.executable}"], ["cmake", "--build", str(build_dir()), "-j2"]):
-            subprocess.run(command, check=True, stdout=output, stderr=errors, text=True)
-    except subprocess.CalledProcessError as error:
-        lines = (error.stderr or "").splitlines()
-        first = next((line.strip() for line in lines if "error" in line.lower()), lines[0].strip() if lines else "")
-        raise HarnessError(f"building the FMUs failed: {' '.join(error.cmd[:2])} exited with {error.returncode}"
-                           + (f": {first}" if first else "")) from None
+    for command in (["cmake", "-S", str(PROJECT_ROOT), "-B", str(build_dir()), "-DCMAKE_BUILD_TYPE=Release",
+                     f"-DOBJECTS_PYTHON={sys.executable}"], ["cmake", "--build", str(build_dir()), "-j2"]):
+        result = run_program(command, stdout=output, stderr=errors)
+        if result.returncode != 0:
+            lines = (result.stderr or "").splitlines()
+            first = next((line.strip() for line in lines if "error" in line.lower()), lines[0].strip() if lines else "")
+            raise HarnessError(f"building the FMUs failed: {' '.join(command[:2])} exited with {result.returncode}"
+                               + (f": {first}" if first else ""))
 
 
 def locate_fmu(name: str, build_if_missing: bool = True) -> Path:

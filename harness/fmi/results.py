@@ -24,7 +24,7 @@ class TimeTable:
 
     def write_csv(self, path: str | Path) -> None:
         """Through a temporary file renamed at the end (harness/output.py)."""
-        from harness.output import written
+        from harness.output import csv_header, written
         with written(Path(path)) as sink:
-            sink.write(",".join(self.columns) + "\n")
+            sink.write(csv_header(self.columns))
             np.savetxt(sink, self.values, delimiter=",", fmt="%.17g")

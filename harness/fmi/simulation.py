@@ -7,6 +7,8 @@ from __future__ import annotations
 
 import ctypes
 import math
+import sys
+import time
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -26,6 +28,41 @@ class SimulationResult(TimeTable):
 
 
 MAX_POINTS = 10_000_000  # communication points of one run: the rows of its table
+MAX_CELLS = 100_000_000  # numbers in one run's table (800 MB): memory is taken before the run starts
+
+
+def check_table_size(points: int, columns: int) -> None:
+    """Refuses a table too large to hold, before it is allocated (an allocation the system grants
+    lazily would otherwise end the process later, out of memory)."""
+    if points * columns > MAX_CELLS:
+        raise HarnessError(f"{points} communication points of {columns} columns would be {points * columns:.3g} "
+                           f"numbers ({points * columns * 8 / 1e9:.1f} GB), more than the {MAX_CELLS:.0e} allowed: "
+                           "choose a larger step or a shorter time")
+
+
+class Progress:
+    """A line on stderr every `interval` seconds of a long run: how far it is and about how long is
+    left. Calling it is cheap when no line is due."""
+
+    def __init__(self, stop: float, interval: float = 2.0):
+        self.stop, self.interval = stop, interval
+        self.started = self.last = time.monotonic()
+
+    def __call__(self, t: float, fraction: float) -> None:
+        now = time.monotonic()
+        if now - self.last < self.interval:
+            return
+        self.last = now
+        left = (now - self.started) * (1 - fraction) / fraction if fraction > 0 else math.inf
+        print(f"  t = {t:.4g} of {self.stop:g} s ({100 * fraction:.0f}%, about {_duration(left)} left)",
+              file=sys.stderr)
+
+
+def _duration(seconds: float) -> str:
+    if not math.isfinite(seconds):
+        return "an unknown time"
+    return f"{seconds:.0f} s" if seconds < 120 else f"{seconds / 60:.0f} min" if seconds < 7200 else \
+        f"{seconds / 3600:.1f} h"
 
 
 def communication_grid(start_time: float, stop_time: float, step: float) -> np.ndarray:
@@ -53,21 +90,18 @@ def communication_grid(start_time: float, stop_time: float, step: float) -> np.n
 
 def simulate(fmu: str | Path, stop_time: float, step: float = 0.01, start_time: float = 0.0,
              start_values: dict | None = None, outputs: list[str] | None = None,
-             unzipdir: str | None = None) -> SimulationResult:
+             unzipdir: str | None = None, keep_interrupted: bool = False,
+             progress: bool = False) -> SimulationResult:
     """Runs the FMU from start_time to stop_time; start_values by name (solver="rk4", h=0.008, ...).
-    unzipdir: an already extracted copy of the FMU, to save extracting it again."""
+    unzipdir: an already extracted copy of the FMU, to save extracting it again. keep_interrupted:
+    Ctrl-C ends the run with the rows so far (`interrupted` set) instead of raising KeyboardInterrupt.
+    progress: a line on stderr every two seconds of a long run."""
     grid = communication_grid(start_time, stop_time, step)
     with FmuInstance(fmu, name=Path(fmu).stem, unzipdir=unzipdir) as instance:
         instance.initialize(start_time, **(start_values or {}))
         if outputs is None:
             outputs = [v.name for v in instance.model_description.modelVariables if v.causality == "output"]
-        return run_initialized(instance, grid, outputs)
-
-
-def run_initialized(instance: FmuInstance, grid: np.ndarray, outputs: list[str]) -> SimulationResult:
-    """Steps an initialized instance over the grid, recording the outputs at every point (Real
-    columns first)."""
-    return Recorder(instance, grid, outputs).run()
+        return Recorder(instance, grid, outputs).run(keep_interrupted, Progress(stop_time) if progress else None)
 
 
 class Recorder:
@@ -81,6 +115,7 @@ class Recorder:
         real_names = [n for n in outputs if instance.variables[n].type == "Real"]
         integer_names = [n for n in outputs if n not in real_names]
         self.columns = ["time"] + real_names + integer_names
+        check_table_size(len(grid), len(self.columns))
         self.n_real, self.n_int = len(real_names), len(integer_names)
         self.real_vrs = (ctypes.c_uint * self.n_real)(*[instance.reference(n) for n in real_names])
         self.integer_vrs = (ctypes.c_uint * self.n_int)(*[instance.reference(n) for n in integer_names])
@@ -93,7 +128,7 @@ class Recorder:
         self.int_rows = (self.integers.__array_interface__["data"][0]
                          + self.integers.strides[0] * np.arange(len(grid))).tolist()
 
-    def run(self) -> SimulationResult:
+    def run(self, keep_interrupted: bool = False, progress: Progress | None = None) -> SimulationResult:
         instance = self.instance
         name = instance.path.name
         raw = instance.raw
@@ -127,7 +162,11 @@ class Recorder:
                     raise HarnessError(f"{name}: fmi2DoStep at t = {t} returned {STATUS_NAMES[status]}: "
                                        f"{instance.last_message()}")
                 record(i)
-        except KeyboardInterrupt:  # the rows before the interrupted step are kept
+                if progress is not None and not i & 63:
+                    progress(times[i], i / (rows - 1))
+        except KeyboardInterrupt:  # the rows before the interrupted step are kept, if the caller wants them
+            if not keep_interrupted:
+                raise
             interrupted, rows, discarded_at = True, i, None
         table = np.empty((rows, len(self.columns)))
         table[:, 0] = self.grid[:rows]

@@ -11,7 +11,6 @@ from __future__ import annotations
 import os
 import shlex
 import shutil
-import subprocess
 import sys
 import tempfile
 import zipfile
@@ -22,6 +21,7 @@ from harness.errors import HarnessError
 from harness.objects.generate import generate
 from harness.objects.model_description import SOURCE_FILES
 from harness.objects.object_file import ObjectFileError
+from harness.processes import run_program
 
 PROJECT_ROOT = Path(__file__).resolve().parents[2]
 FRAMEWORK = PROJECT_ROOT / "fmus" / "framework"
@@ -49,10 +49,9 @@ def derive_fmu(object_file: str | Path, out: str | Path) -> DerivedFmu:
         except ObjectFileError as error:
             raise HarnessError(str(error)) from None
         folder = generated.folder
-        result = subprocess.run([sys.executable, str(PROJECT_ROOT / "tools" / "fmu_codegen.py"), "--out",
-                                 str(work / "generated"), "--models", str(PROJECT_ROOT / "fmus" / "models"),
-                                 "--sources", *SOURCE_FILES, "--xml", str(folder / "modelDescription.xml")],
-                                capture_output=True, text=True)
+        result = run_program([sys.executable, str(PROJECT_ROOT / "tools" / "fmu_codegen.py"), "--out",
+                              str(work / "generated"), "--models", str(PROJECT_ROOT / "fmus" / "models"),
+                              "--sources", *SOURCE_FILES, "--xml", str(folder / "modelDescription.xml")])
         if result.returncode != 0:
             raise HarnessError(f"{object_file}: the generated model description was refused: "
                                f"{result.stderr.strip().splitlines()[-1]}")
@@ -71,7 +70,7 @@ def derive_fmu(object_file: str | Path, out: str | Path) -> DerivedFmu:
         library = binaries / f"{generated.identifier}.so"
         command = [*compiler, *C_FLAGS, "-shared", f"-I{sources}", "-o", str(library),
                    *(str(sources / name) for name in SOURCE_FILES), "-lm"]
-        result = subprocess.run(command, capture_output=True, text=True)
+        result = run_program(command)
         if result.returncode != 0:
             first = next((line for line in result.stderr.splitlines() if "error" in line), result.stderr.strip())
             raise HarnessError(f"{object_file}: compiling the generated C failed: {first}")

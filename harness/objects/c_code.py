@@ -251,7 +251,7 @@ def generate_c(derivation: Derivation) -> GeneratedC:
     for k, (requirement, text) in enumerate(zip(requirements, spec.require)):
         explain += [f"    if (!({c_expr(requirement)} > 0.0)) {{",
                     f'        snprintf(message, size, "{_c_string(str(text))} = %g must stay > 0 (require[{k}] of the '
-                    f'object file)", {c_expr(requirement)});', "        return 1;", "    }"]
+                    f'object file)", (double)({c_expr(requirement)}));', "        return 1;", "    }"]
     explain_mass, explain_reduced, _ = _cse_lines(mass, "w")
     explain += explain_mass
     explain += _pivot_report(n, dict(zip(upper, explain_reduced)))

@@ -351,6 +351,9 @@ def read_object_file(path: str | Path, text: str | None = None) -> ObjectSpec:
     if not isinstance(require_list, list):
         raise reader.fail("require", "must be a list of expressions that stay positive")
     require = [reader.expression(e, f"require[{k}]", symbols, params | q | t) for k, e in enumerate(require_list)]
+    for k, expression in enumerate(require):
+        if not expression.free_symbols:  # always true or always false: a mistake, never a condition
+            raise reader.fail(f"require[{k}]", f"= {expression} depends on no parameter or coordinate")
 
     spec = ObjectSpec(path, identifier, description, parameters, coordinates, T, U, points, forces, rest, require,
                       symbols)

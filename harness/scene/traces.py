@@ -9,6 +9,7 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402  (the backend must be chosen first)
 
 from harness.fmi.simulation import SimulationResult  # noqa: E402
+from harness.output import write_figure  # noqa: E402
 
 
 def draw_traces(panels: list[tuple[str, SimulationResult, list[tuple[str, str]], tuple[float, float]]],
@@ -29,5 +30,5 @@ def draw_traces(panels: list[tuple[str, SimulationResult, list[tuple[str, str]],
             ax.text(0.02, 0.02, f"stopped: discard at t = {result.discarded_at:.3f} s", transform=ax.transAxes,
                     color="red", fontsize=8)
     figure.tight_layout()
-    figure.savefig(path, dpi=110)
+    write_figure(figure, Path(path))
     plt.close(figure)

@@ -10,6 +10,7 @@ import matplotlib.ticker
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 
+from harness.output import write_figure  # noqa: E402
 from harness.studies.work_precision import Point, pareto_front  # noqa: E402
 
 PEER_STYLE = {"scipy-RK45": "s", "scipy-DOP853": "D", "scipy-LSODA": "^", "fmpy-CVode": "v"}
@@ -18,7 +19,7 @@ PEER_STYLE = {"scipy-RK45": "s", "scipy-DOP853": "D", "scipy-LSODA": "^", "fmpy-
 def save(figure, out: Path, stem: str) -> list[Path]:
     paths = [out / f"{stem}.png", out / f"{stem}.svg"]
     for path in paths:
-        figure.savefig(path, dpi=110)
+        write_figure(figure, path)
     plt.close(figure)
     return paths
 

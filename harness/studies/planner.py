@@ -35,6 +35,7 @@ import numpy as np
 from harness.cosim.structure import Component, System
 from harness.errors import HarnessError
 from harness.fmi.fmu_instance import read_fmi2_description
+from harness.fmi.simulation import MAX_POINTS
 from harness.fmi.methods import ORDER
 from harness.objects.proof import object_file_in
 from harness.objects.thesis.equations import OUTER_MASS, Pendulum
@@ -188,6 +189,12 @@ def plan_scene(system: System, tolerance: float | None = None, duration: float |
     frame = system.frame_step()
     if duration is None or frame is None:
         raise HarnessError(f"{system.name}: the scene needs \"stop\" and a frame rate or \"step\"")
+    if not frame <= duration:
+        raise HarnessError(f"{system.name}: a frame every {frame:g} s is longer than the {duration:g} s planned; "
+                           "raise the camera's frame rate or the duration")
+    if duration / frame > MAX_POINTS:
+        raise HarnessError(f"{system.name}: {duration:g} s at a frame every {frame:g} s are more than {MAX_POINTS:g} "
+                           "frames; lower the camera's frame rate")
     if system.connections:
         return plan_coupled(system, tolerance, duration, frame, scheduler, workers)
     for component in system.components:

@@ -30,6 +30,7 @@ from pathlib import Path
 
 import numpy as np
 
+from harness.errors import HarnessError
 from harness.fmi.methods import FIXED_STEP
 from harness.objects.derivation import derive
 from harness.objects.modes import normal_modes
@@ -240,7 +241,11 @@ def cases(fmu_dir: Path, full: bool = False, quick: bool = False, objects: list[
     chosen = list(objects) if objects is not None else list(object_names())
     found = [simple_cases(fmu_dir / "SimplePendulum.fmu", ratios)] if "SimplePendulum" in chosen else []
     found += [[mode_case(fmu_dir / f"{name}.fmu")] for name in chosen if name != "SimplePendulum"]
-    return [case for group in found for case in group if case is not None]
+    measured = [case for group in found for case in group if case is not None]
+    if not measured:
+        raise HarnessError(f"{', '.join(chosen)}: no linear model to measure a stability limit on; the atlas "
+                           "takes the SimplePendulum and objects with a linear model")
+    return measured
 
 
 def atlas(fmu_dir: Path, methods=FIXED_STEP, full: bool = False, scheduler: str | None = None,

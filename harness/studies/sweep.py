@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import os
 import signal
+import tempfile
 from concurrent.futures import ProcessPoolExecutor
 from typing import Callable, Iterable, TypeVar
 
@@ -35,15 +36,36 @@ def run_sweep(function: Callable[[Item], Result], items: Iterable[Item], schedul
         workers = workers or local_cores()
         if workers == 1:
             return [function(item) for item in items]
-        with ProcessPoolExecutor(max_workers=workers, initializer=_leave_interrupts_to_the_parent) as pool:
-            return list(pool.map(function, items))
+        # the workers' temporary files go into one folder the sweep owns: a worker ended in the middle
+        # of an item cannot remove what it extracted, so the parent removes it after the pool
+        with tempfile.TemporaryDirectory(prefix="sweep-") as scratch:
+            pool = ProcessPoolExecutor(max_workers=workers, initializer=_worker_setup, initargs=(scratch,))
+            try:
+                return list(pool.map(function, items))
+            except BaseException:  # an interrupt or a failed item: the items still running are not waited for
+                _terminate_workers(pool)
+                raise
+            finally:
+                pool.shutdown(wait=True, cancel_futures=True)
     return _dask_map(function, items, scheduler, workers)
 
 
-def _leave_interrupts_to_the_parent() -> None:
+def _worker_setup(scratch: str) -> None:
     """Ctrl-C reaches every process of the terminal's group: the workers ignore it, the parent stops
-    the sweep (and the pool with it), so that an interrupt is one line, not one traceback per worker."""
+    the sweep (and the pool with it), so that an interrupt is one line, not one traceback per worker.
+    SIGTERM gets its default action back (a worker inherits the parent's handler, which would wait
+    for a long call into an FMU to return before it acted)."""
     signal.signal(signal.SIGINT, signal.SIG_IGN)
+    signal.signal(signal.SIGTERM, signal.SIG_DFL)
+    tempfile.tempdir = scratch
+
+
+def _terminate_workers(pool: ProcessPoolExecutor) -> None:
+    """Ends the pool's worker processes at once: an item may sit in an FMU call for minutes, and
+    shutdown() alone waits for it. The executor has no public way to do this before Python 3.14."""
+    for process in list((getattr(pool, "_processes", None) or {}).values()):
+        if process.is_alive():
+            process.terminate()
 
 
 def _dask_map(function, items, scheduler: str, workers: int | None):
