@@ -17,9 +17,9 @@ from harness.objects.numeric_route import NumericLagrangian
 from harness.objects.object_file import read_object_file
 from harness.objects.proof import random_values
 from harness.objects.registry import object_file, object_names
-from harness.objects.thesis.reference import slope
-from harness.studies.work_precision import (FIXED_STEP, ORDER, STEP, STOP, peer_equations, read_csv, reference_for,
+from harness.studies.work_precision import (FIXED_STEP, STEP, STOP, peer_equations, read_csv, reference_for,
                                             step_scale)
+from test_work_precision import assert_slope_is_the_order, assert_tolerances_buy_accuracy
 
 OBJECTS = ("CartPendulum", "SphericalPendulum", "KapitzaPendulum")
 NEW_OBJECTS = [name for name in object_names() if name not in ("SimplePendulum", "DoublePendulum", "SpringPendulum")]
@@ -56,18 +56,12 @@ def test_the_fixed_steps_follow_the_default_step(sweep):
 def test_slopes_are_the_orders(sweep, name, method):
     """Through the finest settings whose errors lie above 100 times the reference's estimate and
     below 1e-3 m: log(error) against log(evaluations) falls with the method's order."""
-    mine = sorted((p for p in sweep[1] if p.object == name and p.method == method
-                   and 100 * p.reference_error <= p.error <= 1e-3), key=lambda p: p.rhs_evals)[-3:]
-    assert len(mine) >= 2, [p.error for p in sweep[1] if p.object == name and p.method == method]
-    measured = -slope([p.rhs_evals for p in mine], [p.error for p in mine])
-    assert abs(measured - ORDER[method]) < 0.35, measured
+    assert_slope_is_the_order(sweep[1], name, method, lambda p: 100 * p.reference_error <= p.error <= 1e-3, 2, 0.35)
 
 
 @pytest.mark.parametrize("name", OBJECTS)
 def test_tighter_tolerances_buy_accuracy(sweep, name):
-    for method in ("rkf45", "scipy-RK45", "scipy-DOP853", "scipy-LSODA", "fmpy-CVode"):
-        mine = sorted((p for p in sweep[1] if p.object == name and p.method == method), key=lambda p: p.tol)
-        assert mine[0].error * 100 < mine[-1].error, (method, [p.error for p in mine])
+    assert_tolerances_buy_accuracy(sweep[1], name)
 
 
 @pytest.mark.parametrize("name", ["CartPendulum", "SphericalPendulum"])
