@@ -136,9 +136,8 @@ def _number(value) -> str:
     return repr(float(value)) if float(value) != int(float(value)) or abs(value) >= 1e16 else str(int(float(value)))
 
 
-def model_description(derivation: Derivation) -> str:
-    spec = derivation.spec
-    variable_list = variables(derivation)
+def unit_table(spec, variable_list: list[Variable]) -> dict[str, tuple[dict[str, int], float]]:
+    """Every unit the variables use, as SI base exponents and factor (both FMI versions declare them)."""
     units: dict[str, tuple[dict[str, int], float]] = {}
     for v in variable_list:
         if v.unit and v.unit not in units:
@@ -147,9 +146,71 @@ def model_description(derivation: Derivation) -> str:
             except ValueError as error:
                 raise ObjectFileError(f"{spec.path}: unit {v.unit!r} of {v.name}: {error.args[0]!r} is not a unit "
                                       f"this generator knows ({', '.join(BASE)}, with powers, '.' and '/')") from None
-    body = _document(derivation, variable_list, units, "{GUID}")
-    guid = "{" + str(uuid.uuid5(GUID_NAMESPACE, body)) + "}"
-    return body.replace("{GUID}", guid)
+    return units
+
+
+TOKEN = "{GUID}"  # where the GUID (FMI 2.0) or instantiation token (FMI 3.0) goes
+
+
+def stamped(body: str) -> str:
+    """The document with its token: a UUID made from the rest of it, so equal descriptions get equal tokens."""
+    return body.replace(TOKEN, "{" + str(uuid.uuid5(GUID_NAMESPACE, body)) + "}")
+
+
+def unit_lines(units: dict[str, tuple[dict[str, int], float]]) -> list[str]:
+    """<UnitDefinitions> content, the same in both FMI versions."""
+    lines = []
+    for name, (exponents, factor) in units.items():
+        attributes = "".join(f' {k}="{v}"' for k, v in sorted(exponents.items()))
+        if factor != 1.0:
+            attributes += f' factor="{factor!r}"'
+        lines.append(f'    <Unit name={quoteattr(name)}><BaseUnit{attributes}/></Unit>')
+    return lines
+
+
+def enumerations(derivation: Derivation) -> list[tuple[str, list[tuple[str, int, str]]]]:
+    """Each enumeration type: its name and its items (name, value, description)."""
+    found = [("Solver", [(name, k + 1, description) for k, (name, _, description) in enumerate(_solver_items())])]
+    if derivation.linear is not None:
+        found.append(("Model", [("nonlinear", 1, "full equations, integrated by the chosen solver"),
+                                ("linear", 2, "quadratic T and U about rest, solved in closed form per step")]))
+    return found
+
+
+def item_line(indent: str, item: tuple[str, int, str]) -> str:
+    name, value, description = item
+    return f'{indent}<Item name="{name}" value="{value}" description={quoteattr(description)}/>'
+
+
+TRAILER_LINES = ['  <LogCategories>',
+                 '    <Category name="logStatusError" description="errors: bad arguments, illegal call sequences"/>',
+                 '    <Category name="logStatusWarning" description="warnings"/>',
+                 '    <Category name="logStatusDiscard" description="steps that could not be completed"/>',
+                 '    <Category name="logAll" description="everything"/>',
+                 '  </LogCategories>',
+                 '  <DefaultExperiment startTime="0" stopTime="10" stepSize="0.01"/>']
+
+
+def common_attributes(v: Variable, reference: int) -> str:
+    """The attributes a variable has in both FMI versions."""
+    attributes = f'name={quoteattr(v.name)} valueReference="{reference}" causality="{v.causality}" ' \
+                 f'variability="{v.variability}"'
+    if v.initial:
+        attributes += f' initial="{v.initial}"'
+    if v.description:
+        attributes += f" description={quoteattr(v.description)}"
+    return attributes
+
+
+def range_attributes(v: Variable) -> str:
+    """start, min and max of a Real (Float64) variable, where it has them."""
+    return "".join(f' {key}="{_number(value)}"' for key, value in (("start", v.start), ("min", v.min), ("max", v.max))
+                   if value is not None)
+
+
+def model_description(derivation: Derivation) -> str:
+    variable_list = variables(derivation)
+    return stamped(_document(derivation, variable_list, unit_table(derivation.spec, variable_list), TOKEN))
 
 
 def _document(derivation: Derivation, variable_list: list[Variable], units, guid: str) -> str:
@@ -174,39 +235,18 @@ def _document(derivation: Derivation, variable_list: list[Variable], units, guid
         '  </CoSimulation>',
         '  <UnitDefinitions>',
     ]
-    for name, (exponents, factor) in units.items():
-        attributes = "".join(f' {k}="{v}"' for k, v in sorted(exponents.items()))
-        if factor != 1.0:
-            attributes += f' factor="{factor!r}"'
-        lines.append(f'    <Unit name={quoteattr(name)}><BaseUnit{attributes}/></Unit>')
-    lines += ['  </UnitDefinitions>', '  <TypeDefinitions>', '    <SimpleType name="Solver">', '      <Enumeration>']
-    for k, (name, _, description) in enumerate(_solver_items()):
-        lines.append(f'        <Item name="{name}" value="{k + 1}" description={quoteattr(description)}/>')
-    lines += ['      </Enumeration>', '    </SimpleType>']
-    if derivation.linear is not None:
-        lines += ['    <SimpleType name="Model">', '      <Enumeration>',
-                  '        <Item name="nonlinear" value="1" description="full equations, integrated by the chosen '
-                  'solver"/>',
-                  '        <Item name="linear" value="2" description="quadratic T and U about rest, solved in closed '
-                  'form per step"/>',
-                  '      </Enumeration>', '    </SimpleType>']
-    lines += ['  </TypeDefinitions>', '  <LogCategories>',
-              '    <Category name="logStatusError" description="errors: bad arguments, illegal call sequences"/>',
-              '    <Category name="logStatusWarning" description="warnings"/>',
-              '    <Category name="logStatusDiscard" description="steps that could not be completed"/>',
-              '    <Category name="logAll" description="everything"/>',
-              '  </LogCategories>',
-              '  <DefaultExperiment startTime="0" stopTime="10" stepSize="0.01"/>',
+    lines += unit_lines(units)
+    lines += ['  </UnitDefinitions>', '  <TypeDefinitions>']
+    for type_name, items in enumerations(derivation):
+        lines += [f'    <SimpleType name="{type_name}">', '      <Enumeration>']
+        lines += [item_line("        ", item) for item in items]
+        lines += ['      </Enumeration>', '    </SimpleType>']
+    lines += ['  </TypeDefinitions>', *TRAILER_LINES,
               '  <ModelVariables>']
     reals = [v for v in variable_list if v.type == "Real"]
     integers = [v for v in variable_list if v.type != "Real"]
     for index, v in enumerate(reals + integers, start=1):
-        attributes = f'name={quoteattr(v.name)} valueReference="{index - 1}" causality="{v.causality}" ' \
-                     f'variability="{v.variability}"'
-        if v.initial:
-            attributes += f' initial="{v.initial}"'
-        if v.description:
-            attributes += f" description={quoteattr(v.description)}"
+        attributes = common_attributes(v, index - 1)
         typed = ""
         if v.type == "Enumeration":
             typed = f'<Enumeration declaredType="{v.declared_type}" start="{v.start}"/>'
@@ -218,13 +258,7 @@ def _document(derivation: Derivation, variable_list: list[Variable], units, guid
                 typed += f" unit={quoteattr(v.unit)}"
             if v.derivative:
                 typed += f' derivative="{v.derivative}"'
-            if v.start is not None:
-                typed += f' start="{_number(v.start)}"'
-            if v.min is not None:
-                typed += f' min="{_number(v.min)}"'
-            if v.max is not None:
-                typed += f' max="{_number(v.max)}"'
-            typed += "/>"
+            typed += range_attributes(v) + "/>"
         lines.append(f"    <!-- {index} --><ScalarVariable {attributes}>{typed}</ScalarVariable>")
     ordered = reals + integers
     outputs = [k for k, v in enumerate(ordered, start=1) if v.causality == "output"]
