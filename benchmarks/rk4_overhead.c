@@ -21,6 +21,7 @@
 #include <time.h>
 
 #define MODEL_DESCRIPTION_TABLES
+#include "fmi2_api.h"
 #include "framework.h"
 #include "handwritten_rhs.h"
 

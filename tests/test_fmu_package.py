@@ -154,7 +154,7 @@ def test_prototypes_match_the_standard_headers(tmp_path):
     """The framework compiles against the FMI standard's own headers (shipped with fmpy) too."""
     headers = Path(fmpy.__file__).parent / "c-code"
     generated = PROJECT_ROOT / "build" / "generated" / "SimplePendulum"
-    for source in ("fmi2_functions.c", "stepper.c", "instance.c"):
+    for source in ("fmi2_functions.c", "core.c", "stepper.c", "instance.c"):
         subprocess.run(["gcc", "-std=c99", "-fsyntax-only", "-Werror=incompatible-pointer-types",
                         "-DUSE_STANDARD_FMI2_HEADERS", f"-I{headers}", f"-I{generated}",
                         f"-I{PROJECT_ROOT / 'fmus' / 'framework'}", f"-I{generated}",
@@ -164,7 +164,7 @@ def test_prototypes_match_the_standard_headers(tmp_path):
 def run_codegen(tmp_path: Path, xml_files: list[Path]) -> subprocess.CompletedProcess:
     return subprocess.run([sys.executable, str(PROJECT_ROOT / "tools" / "fmu_codegen.py"), "--out", str(tmp_path / "gen"),
                            "--models", str(PROJECT_ROOT / "fmus" / "models"),
-                           "--sources", "fmi2_functions.c", "stepper.c", "instance.c", "integrators.c", "linear_model.c",
+                           "--sources", "fmi2_functions.c", "core.c", "stepper.c", "instance.c", "integrators.c", "linear_model.c",
                            "physics.c",
                            "--xml", *map(str, xml_files)], capture_output=True, text=True)
 

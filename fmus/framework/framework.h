@@ -1,6 +1,8 @@
-/* The shared FMI framework: instance layout, variable table types and the interface every model
- * implements in its physics.c. The framework is compiled once per FMU, against that FMU's
- * generated model_description.h, so array sizes and value references are compile-time constants. */
+/* The shared FMI framework: instance layout, variable table types, the version-neutral core that
+ * every FMI API layer calls (core.c), and the interface every model implements in its physics.c.
+ * Nothing here names an FMI version: fmi2_functions.c is the FMI 2.0 layer over it. The framework is
+ * compiled once per FMU, against that FMU's generated model_description.h, so array sizes and value
+ * references are compile-time constants. */
 #ifndef FRAMEWORK_H
 #define FRAMEWORK_H
 
@@ -8,16 +10,18 @@
 #include <stddef.h>
 #include <stdint.h>
 
-#include "fmi2_api.h"
-
 /* Internal names stay private to the binary, also when an importer compiles the sources without the
- * project's build flags: only the fmi2 functions are exported, so that two FMUs in one process never
+ * project's build flags: only the FMI functions are exported, so that two FMUs in one process never
  * call each other's internals. (Windows DLLs export only what is marked for export anyway.) */
 #if defined(__GNUC__) && !defined(_WIN32) && !defined(__CYGWIN__)
 #define INTERNAL __attribute__((visibility("hidden")))
 #else
 #define INTERNAL
 #endif
+
+/* Return codes, numbered as both FMI versions number theirs (fmi2Status, fmi3Status). */
+typedef enum { STATUS_OK = 0, STATUS_WARNING = 1, STATUS_DISCARD = 2, STATUS_ERROR = 3 } Status;
+typedef enum { INTERFACE_MODEL_EXCHANGE, INTERFACE_CO_SIMULATION } Interface;
 
 typedef enum {
     CAUSALITY_PARAMETER, CAUSALITY_CALCULATED_PARAMETER, CAUSALITY_INPUT, CAUSALITY_OUTPUT,
@@ -46,7 +50,8 @@ typedef struct {
 #define INTEGER_SLOTS (N_INTEGER > 0 ? N_INTEGER : 1)
 #define AB_MAX_STEPS 6
 
-/* States of the FMI 2.0 state machines (CS and ME share one bit set). */
+/* States of the FMI state machines (CS and ME share one bit set; an API layer names them in its
+ * version's terms: stepComplete is FMI 3.0's Step Mode). */
 enum {
     MS_INSTANTIATED = 1 << 0,
     MS_INITIALIZATION = 1 << 1,
@@ -57,6 +62,9 @@ enum {
     MS_TERMINATED = 1 << 6,
     MS_ERROR = 1 << 7
 };
+/* The states an instance of each interface can be in. */
+#define CS_ANY (MS_INSTANTIATED | MS_INITIALIZATION | MS_STEP_COMPLETE | MS_STEP_FAILED | MS_TERMINATED | MS_ERROR)
+#define ME_ANY (MS_INSTANTIATED | MS_INITIALIZATION | MS_EVENT | MS_CONTINUOUS | MS_TERMINATED | MS_ERROR)
 
 /* Integrator memory that must survive between fmi2DoStep calls. */
 typedef struct {
@@ -80,19 +88,24 @@ typedef struct {
     IntegratorMemory integrator;
 } SimState;
 
-typedef struct {
+typedef struct Instance Instance;
+/* How a message reaches the importer: the API layer's translation to its version's logger. */
+typedef void (*MessageSink)(const Instance *inst, Status status, const char *category, const char *message);
+
+struct Instance {
     SimState s;
     ModelConst constants;   /* derived from the parameters by model_prepare */
     int constants_valid;
     int outputs_valid;      /* calculated outputs in s.real match the state */
-    fmi2Type type;
+    Interface type;
     char *name;
-    fmi2CallbackLogger logger;
-    fmi2CallbackAllocateMemory allocate;
-    fmi2CallbackFreeMemory release;
-    fmi2ComponentEnvironment environment;
+    MessageSink emit;
+    void (*api_logger)(void); /* the importer's logger, cast back to its type by the API layer */
+    void *environment;        /* the importer's pointer handed back with every message */
+    void *(*allocate)(size_t count, size_t size);
+    void (*release)(void *memory);
     int logging_on;
-} Instance;
+};
 
 /* instance.c. Logging: errors and discards are always reported; the rest only with debug logging on. */
 INTERNAL void log_error(Instance *inst, const char *fmt, ...);
@@ -105,13 +118,59 @@ INTERNAL int first_non_finite(const double *values, int n);
 /* The current inputs, gathered into a contiguous array. */
 INTERNAL void gather_inputs(const Instance *inst, double *u);
 
-/* stepper.c: fmi2DoStep's integration from s.time to t + H. */
-INTERNAL fmi2Status step_to(Instance *inst, double t, double H);
+/* stepper.c: the integration of a communication step from s.time to t + H; `function` names the API
+ * function in messages. */
+INTERNAL Status step_to(Instance *inst, const char *function, double t, double H);
 INTERNAL void restart_integrator(Instance *inst);
 #if N_STATES > 0
 /* States x (of the Instance context) are finite and regular, with finite derivatives and outputs. */
 INTERNAL int state_acceptable(const void *context, double t, const double *x);
 #endif
+
+/* ---- core.c: what every API function does once its call is allowed in the current state. Each takes
+ * the API function's name for its messages, logs what it refuses and returns a Status. ---- */
+INTERNAL Instance *core_instantiate(const char *function, Interface type, const char *name, const char *token,
+                                    MessageSink emit, void (*api_logger)(void), void *environment,
+                                    void *(*allocate)(size_t, size_t), void (*release)(void *), int logging_on);
+INTERNAL void core_free(Instance *inst);
+INTERNAL void core_reset(Instance *inst);
+INTERNAL Status core_setup(Instance *inst, const char *function, double start, int stop_defined, double stop);
+INTERNAL Status core_exit_initialization(Instance *inst, const char *function);
+INTERNAL int core_arrays_present(Instance *inst, const char *function, size_t n, const void *a, const void *b);
+INTERNAL Status core_get_real(Instance *inst, const char *function, const unsigned int vr[], size_t n, double value[]);
+INTERNAL Status core_set_real(Instance *inst, const char *function, const unsigned int vr[], size_t n,
+                              const double value[]);
+/* Integer variables (enumerations and the counters) by reference, as `width`-byte integers: 4 for
+ * FMI 2.0's Integer (the counters saturate at INT32_MAX), 8 for FMI 3.0's Int64 and UInt64. */
+INTERNAL Status core_get_integer(Instance *inst, const char *function, const unsigned int vr[], size_t n,
+                                 void *value, int width);
+INTERNAL Status core_set_integer(Instance *inst, const char *function, const unsigned int vr[], size_t n,
+                                 const void *value, int width);
+INTERNAL Status core_no_such_variables(Instance *inst, const char *function, size_t n, const unsigned int vr[],
+                                       const char *type);
+/* FMU states: `state` points to the importer's handle (NULL or one this FMU made). */
+INTERNAL Status core_get_state(Instance *inst, const char *function, void **state);
+INTERNAL Status core_set_state(Instance *inst, const char *function, const void *state);
+INTERNAL Status core_free_state(Instance *inst, const char *function, void **state);
+INTERNAL Status core_serialized_size(Instance *inst, const char *function, const void *state, size_t *size);
+INTERNAL Status core_serialize(Instance *inst, const char *function, const void *state, unsigned char *out,
+                               size_t size);
+INTERNAL Status core_deserialize(Instance *inst, const char *function, const unsigned char *in, size_t size,
+                                 void **state);
+/* Model Exchange */
+INTERNAL Status core_set_time(Instance *inst, const char *function, double time);
+INTERNAL Status core_set_continuous_states(Instance *inst, const char *function, const double x[], size_t n);
+INTERNAL Status core_get_derivatives(Instance *inst, const char *function, double dx[], size_t n);
+INTERNAL Status core_get_continuous_states(Instance *inst, const char *function, double x[], size_t n);
+INTERNAL Status core_get_nominals(Instance *inst, const char *function, double nominal[], size_t n);
+/* Co-Simulation: first derivatives of inputs and outputs (`orders` must all be 1), the step itself. */
+INTERNAL Status core_set_input_derivatives(Instance *inst, const char *function, const unsigned int vr[], size_t n,
+                                           const int32_t orders[], const double value[]);
+INTERNAL Status core_get_output_derivatives(Instance *inst, const char *function, const unsigned int vr[], size_t n,
+                                            const int32_t orders[], double value[]);
+INTERNAL Status core_do_step(Instance *inst, const char *function, double t, double H);
+INTERNAL const char *core_state_name(int state);
+INTERNAL void core_describe_states(unsigned mask, char *text, size_t size);
 
 /* ---- implemented by each model: physics.h defines ModelConst and, for a model with states,
  * static inline void model_equations(const ModelConst *c, double t, const double *x,

@@ -1,29 +1,29 @@
 /* What every part of the framework needs of an instance: logging through the importer's callback,
- * the inputs gathered from the variables, and the finiteness check. Kept out of fmi2_functions.c so
- * that stepper.c depends on this file alone and the API depends on the stepper, not the reverse. */
+ * the inputs gathered from the variables, and the finiteness check. Kept out of core.c so that
+ * stepper.c depends on this file alone and the core depends on the stepper, not the reverse. */
 #include <stdarg.h>
 #include <stdio.h>
 
 #define MODEL_DESCRIPTION_TABLES /* INPUT_VRS */
 #include "framework.h"
 
-static void log_with(Instance *inst, fmi2Status status, const char *category, const char *fmt, va_list args)
+static void log_with(Instance *inst, Status status, const char *category, const char *fmt, va_list args)
 {
     char message[1024];
     char *p;
-    if (!inst || !inst->logger) return;
+    if (!inst || !inst->emit) return;
     vsnprintf(message, sizeof message, fmt, args);
     /* Importers differ in whether they treat the message as a printf format: a '%' is never safe. */
     for (p = message; *p; p++)
         if (*p == '%') *p = '?';
-    inst->logger(inst->environment, inst->name, status, category, message);
+    inst->emit(inst, status, category, message);
 }
 
 void log_error(Instance *inst, const char *fmt, ...)
 {
     va_list args;
     va_start(args, fmt);
-    log_with(inst, fmi2Error, "logStatusError", fmt, args);
+    log_with(inst, STATUS_ERROR, "logStatusError", fmt, args);
     va_end(args);
 }
 
@@ -31,7 +31,7 @@ void log_discard(Instance *inst, const char *fmt, ...)
 {
     va_list args;
     va_start(args, fmt);
-    log_with(inst, fmi2Discard, "logStatusDiscard", fmt, args);
+    log_with(inst, STATUS_DISCARD, "logStatusDiscard", fmt, args);
     va_end(args);
 }
 
@@ -40,7 +40,7 @@ void log_debug(Instance *inst, const char *fmt, ...)
     va_list args;
     if (!inst || !inst->logging_on) return;
     va_start(args, fmt);
-    log_with(inst, fmi2OK, "logAll", fmt, args);
+    log_with(inst, STATUS_OK, "logAll", fmt, args);
     va_end(args);
 }
 

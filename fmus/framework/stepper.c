@@ -1,4 +1,5 @@
-/* fmi2DoStep's integration: from the FMU's state at t to t + H, with the solver the user chose.
+/* The integration of a communication step: from the FMU's state at t to t + H, with the solver the
+ * user chose.
  * Finiteness is checked once per communication step; only when that check fails is the step
  * redone with a check after every substep, to stop at the last good one. */
 #include <math.h>
@@ -19,7 +20,7 @@ void restart_integrator(Instance *inst)
 
 #if N_STATES == 0
 
-fmi2Status step_to(Instance *inst, double t, double H)
+Status step_to(Instance *inst, const char *function, double t, double H)
 {
     double before[N_REAL];
     memcpy(before, inst->s.real, sizeof before);
@@ -29,21 +30,21 @@ fmi2Status step_to(Instance *inst, double t, double H)
     if (!model_outputs(&inst->constants, t + H, NULL, inst->s.real) || first_non_finite(inst->s.real, N_REAL) >= 0) {
         memcpy(inst->s.real, before, sizeof before);
         inst->outputs_valid = 0;
-        log_discard(inst, "fmi2DoStep: singular configuration or non-finite outputs at t = %.17g; "
-                    "last successful time %.17g", t + H, t);
+        log_discard(inst, "%s: singular configuration or non-finite outputs at t = %.17g; "
+                    "last successful time %.17g", function, t + H, t);
         inst->s.last_successful_time = t;
-        return fmi2Discard;
+        return STATUS_DISCARD;
     }
     memset(inst->s.input_derivative, 0, sizeof inst->s.input_derivative);
     inst->s.time = t + H;
     inst->s.last_successful_time = t + H;
     inst->outputs_valid = 1;
-    return fmi2OK;
+    return STATUS_OK;
 }
 
 #else
 
-static fmi2Status finish(Instance *inst, double t, double H_done, double t_reached)
+static Status finish(Instance *inst, double t, double H_done, double t_reached)
 {
     model_advance_inputs(inst->s.real, inst->s.input_derivative, H_done);
     memset(inst->s.input_derivative, 0, sizeof inst->s.input_derivative); /* slopes hold for one step */
@@ -51,7 +52,7 @@ static fmi2Status finish(Instance *inst, double t, double H_done, double t_reach
     inst->s.last_successful_time = t_reached;
     inst->outputs_valid = 0;
     (void)t;
-    return fmi2OK;
+    return STATUS_OK;
 }
 
 /* Fills real (a copy of the variables with the states x) with the derivatives and outputs at x;
@@ -78,9 +79,9 @@ int state_acceptable(const void *context, double t, const double *x)
 /* Ends a successful step. When the inputs did not vary, the outputs the end-of-step check computed
  * are those of the new state and inputs: they become the cached outputs instead of being computed
  * again when the master reads them. */
-static fmi2Status finish_with(Instance *inst, double t, double H, const double *checked, int inputs_vary)
+static Status finish_with(Instance *inst, double t, double H, const double *checked, int inputs_vary)
 {
-    const fmi2Status status = finish(inst, t, H, t + H);
+    const Status status = finish(inst, t, H, t + H);
     if (!inputs_vary) {
         memcpy(inst->s.real, checked, N_REAL * sizeof(double));
         inst->outputs_valid = 1;
@@ -88,15 +89,15 @@ static fmi2Status finish_with(Instance *inst, double t, double H, const double *
     return status;
 }
 
-static fmi2Status fail(Instance *inst, double t, double t_good, const char *method, double h)
+static Status fail(Instance *inst, const char *function, double t, double t_good, const char *method, double h)
 {
     finish(inst, t, t_good - t, t_good);
-    log_discard(inst, "fmi2DoStep: %s with h = %g: the state would become non-finite or singular in the substep "
-                "after t = %.17g; stopped there (last successful time %.17g)", method, h, t_good, t_good);
-    return fmi2Discard;
+    log_discard(inst, "%s: %s with h = %g: the state would become non-finite or singular in the substep "
+                "after t = %.17g; stopped there (last successful time %.17g)", function, method, h, t_good, t_good);
+    return STATUS_DISCARD;
 }
 
-fmi2Status step_to(Instance *inst, double t, double H)
+Status step_to(Instance *inst, const char *function, double t, double H)
 {
     SimState *s = &inst->s;
     IntegratorMemory *memory = &s->integrator;
@@ -129,7 +130,7 @@ fmi2Status step_to(Instance *inst, double t, double H)
         for (i = 0; i < N_INPUTS; i++) u_mid[i] = f.u0[i] + 0.5 * H * f.du[i];
         memcpy(closed, x, sizeof closed);
         if (model_closed_form_step(&inst->constants, H, u_mid, closed)) {
-            if (!evaluate_at(inst, t + H, closed, checked)) return fail(inst, t, t, "closed form", H);
+            if (!evaluate_at(inst, t + H, closed, checked)) return fail(inst, function, t, t, "closed form", H);
             memcpy(x, closed, sizeof closed);
             memory->n_steps++;
             return finish_with(inst, t, H, checked, f.inputs_vary);
@@ -156,15 +157,15 @@ fmi2Status step_to(Instance *inst, double t, double H)
         if (reached < t_end) {
             finish(inst, t, reached - t, reached);
             if (f.evaluations + (uint64_t)TABLEAU_RKF45.stages > f.budget)
-                log_discard(inst, "fmi2DoStep: rkf45 with tol = %g used its %.0f right-hand-side evaluations "
+                log_discard(inst, "%s: rkf45 with tol = %g used its %.0f right-hand-side evaluations "
                             "allowed per call at t = %.17g; stopped at the last successful time %.17g (take shorter "
-                            "communication steps or a larger tol)", s->real[VR_tol], MAX_EVALUATIONS_PER_CALL,
+                            "communication steps or a larger tol)", function, s->real[VR_tol], MAX_EVALUATIONS_PER_CALL,
                             reached, reached);
             else
-                log_discard(inst, "fmi2DoStep: rkf45 with tol = %g: the step size underflowed at t = %.17g (the "
+                log_discard(inst, "%s: rkf45 with tol = %g: the step size underflowed at t = %.17g (the "
                             "state is non-finite, singular or too stiff there); stopped at the last successful "
-                            "time %.17g", s->real[VR_tol], reached, reached);
-            return fmi2Discard;
+                            "time %.17g", function, s->real[VR_tol], reached, reached);
+            return STATUS_DISCARD;
         }
         return finish(inst, t, H, t_end);
     } else {
@@ -178,10 +179,10 @@ fmi2Status step_to(Instance *inst, double t, double H)
         const int history = memory->ab_count > 0 && fabs(hs - memory->ab_step) <= 1e-10 * hs ? memory->ab_count : 0;
         const double work = evaluations_needed(solver, history, planned);
         if (work > MAX_EVALUATIONS_PER_CALL) {
-            log_error(inst, "fmi2DoStep: communicationStepSize = %g with %s at h = %g needs %.3g right-hand-side "
-                      "evaluations (allowed at most %.0f per call): raise h or shorten the step", H, method, h, work,
+            log_error(inst, "%s: communicationStepSize = %g with %s at h = %g needs %.3g right-hand-side "
+                      "evaluations (allowed at most %.0f per call): raise h or shorten the step", function, H, method, h, work,
                       MAX_EVALUATIONS_PER_CALL);
-            return fmi2Error;
+            return STATUS_ERROR;
         }
         n = substeps < 1.0 ? 1 : (int64_t)substeps;
         hs = H / (double)n;
@@ -201,7 +202,7 @@ fmi2Status step_to(Instance *inst, double t, double H)
         done = integrate_fixed(&f, solver, memory, x, t, hs, n, 1);
         memory->n_rhs += f.evaluations;
         memory->ab_count = 0;
-        return fail(inst, t, done == n ? t + H : t + (double)done * hs, method, h);
+        return fail(inst, function, t, done == n ? t + H : t + (double)done * hs, method, h);
     }
 }
 

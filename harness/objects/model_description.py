@@ -17,7 +17,7 @@ from harness.fmi.methods import METHODS, SOLVERS
 from harness.objects.derivation import Derivation
 from harness.objects.object_file import FRAMEWORK_PARAMETERS, ObjectFileError
 
-SOURCE_FILES = ("fmi2_functions.c", "stepper.c", "instance.c", "integrators.c", "linear_model.c", "physics.c")
+SOURCE_FILES = ("fmi2_functions.c", "core.c", "stepper.c", "instance.c", "integrators.c", "linear_model.c", "physics.c")
 BASE = {"m": {"m": 1}, "kg": {"kg": 1}, "s": {"s": 1}, "rad": {"rad": 1}, "N": {"kg": 1, "m": 1, "s": -2},
         "J": {"kg": 1, "m": 2, "s": -2}, "W": {"kg": 1, "m": 2, "s": -3}, "Hz": {"s": -1}, "1": {},
         "deg": {"rad": 1}, "A": {"A": 1}, "K": {"K": 1}}

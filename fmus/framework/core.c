@@ -1,0 +1,833 @@
+/* The version-neutral core of the FMI API: start values, variable access with its checks, derived
+ * constants and outputs, FMU state, Model Exchange and the Co-Simulation step. The API layers
+ * (fmi2_functions.c, one file per FMI version) check each call against their version's state machine and
+ * then call in here, passing their function's name for the messages. */
+#include <math.h>
+#include <stdio.h>
+#include <string.h>
+
+#define MODEL_DESCRIPTION_TABLES
+#include "framework.h"
+
+/* ---------------------------------------------------------------- states and messages */
+
+const char *core_state_name(int state)
+{
+    switch (state) {
+    case MS_INSTANTIATED: return "instantiated";
+    case MS_INITIALIZATION: return "initializationMode";
+    case MS_STEP_COMPLETE: return "stepComplete";
+    case MS_STEP_FAILED: return "stepFailed";
+    case MS_EVENT: return "eventMode";
+    case MS_CONTINUOUS: return "continuousTimeMode";
+    case MS_TERMINATED: return "terminated";
+    case MS_ERROR: return "error";
+    default: return "unknown";
+    }
+}
+
+void core_describe_states(unsigned mask, char *text, size_t size)
+{
+    unsigned bit;
+    text[0] = '\0';
+    for (bit = 1; bit <= MS_ERROR; bit <<= 1) {
+        if (mask & bit) {
+            size_t used = strlen(text);
+            snprintf(text + used, size - used, "%s%s", used ? ", " : "", core_state_name((int)bit));
+        }
+    }
+    if (!text[0]) snprintf(text, size, "none");
+}
+
+int core_arrays_present(Instance *inst, const char *function, size_t n, const void *a, const void *b)
+{
+    if (n > 0 && (!a || !b)) {
+        log_error(inst, "%s: NULL array for %lu values", function, (unsigned long)n);
+        return 0;
+    }
+    return 1;
+}
+
+/* ---------------------------------------------------------------- start values and derived data */
+
+void core_reset(Instance *inst)
+{
+    int i;
+    memset(&inst->s, 0, sizeof inst->s);
+    for (i = 0; i < N_REAL; i++)
+        if (REAL_VARIABLES[i].has_start) inst->s.real[i] = REAL_VARIABLES[i].start;
+#if N_INTEGER > 0
+    for (i = 0; i < N_INTEGER; i++)
+        if (INTEGER_VARIABLES[i].has_start) inst->s.integer[i] = (int32_t)INTEGER_VARIABLES[i].start;
+#endif
+    inst->s.machine_state = MS_INSTANTIATED;
+    inst->constants_valid = 0;
+    inst->outputs_valid = 0;
+}
+/* model_prepare guarded by the cross-parameter checks, so that no output can become NaN. */
+static int ensure_constants(Instance *inst, const char *function)
+{
+    char message[256];
+    if (inst->constants_valid) return 1;
+    if (model_prepare(inst->s.real, inst->s.integer, &inst->constants, message, sizeof message)) {
+        log_error(inst, "%s: %s", function, message);
+        return 0;
+    }
+    inst->constants_valid = 1;
+    return 1;
+}
+
+/* Calculated outputs and state derivatives, computed only when someone reads them. */
+static Status ensure_outputs(Instance *inst, const char *function)
+{
+    double *dx = NULL;
+    if (inst->outputs_valid) return STATUS_OK;
+    if (!ensure_constants(inst, function)) return STATUS_ERROR;
+#if N_STATES > 0
+    {
+        double u[INPUT_SLOTS];
+        gather_inputs(inst, u);
+        dx = inst->s.real + N_STATES; /* der(x) follow the states (checked by the code generator) */
+        model_derivatives(&inst->constants, inst->s.time, inst->s.real, u, dx);
+        /* In Model Exchange these are the importer's solver's evaluations; in Co-Simulation the
+           integrator counts its own and this one only serves the outputs. */
+        if (inst->type == INTERFACE_MODEL_EXCHANGE) inst->s.integrator.n_rhs++;
+    }
+#endif
+    if (!model_outputs(&inst->constants, inst->s.time, dx, inst->s.real)) {
+        log_discard(inst, "%s: the outputs are undefined in the current (singular) configuration", function);
+        return STATUS_DISCARD;
+    }
+    {
+        const int bad = first_non_finite(inst->s.real, N_REAL);
+        if (bad >= 0) {
+            log_discard(inst, "%s: %s is not finite for the current inputs and states", function,
+                        REAL_VARIABLES[bad].name);
+            return STATUS_DISCARD;
+        }
+    }
+    inst->outputs_valid = 1;
+    return STATUS_OK;
+}
+
+static int input_index(unsigned int vr)
+{
+#if N_INPUTS > 0
+    int i;
+    for (i = 0; i < N_INPUTS; i++)
+        if (INPUT_VRS[i] == vr) return i;
+#else
+    (void)vr;
+#endif
+    return -1;
+}
+
+/* ---------------------------------------------------------------- life cycle */
+
+Instance *core_instantiate(const char *function, Interface type, const char *name, const char *token,
+                           MessageSink emit, void (*api_logger)(void), void *environment,
+                           void *(*allocate)(size_t, size_t), void (*release)(void *), int logging_on)
+{
+    Instance *inst;
+    Instance reporter; /* logs before an instance exists */
+    size_t length;
+    memset(&reporter, 0, sizeof reporter);
+    reporter.emit = emit;
+    reporter.api_logger = api_logger;
+    reporter.environment = environment;
+    reporter.name = (char *)(name ? name : "?");
+    if (!allocate || !release) {
+        log_error(&reporter, "%s: callback functions allocateMemory and freeMemory are required", function);
+        return NULL;
+    }
+    if (!name || !name[0]) {
+        log_error(&reporter, "%s: instanceName must be a non-empty string", function);
+        return NULL;
+    }
+    if (!token || strcmp(token, MODEL_GUID) != 0) {
+        log_error(&reporter, "%s: fmuGUID = %s does not match this FMU (%s, GUID %s)", function,
+                  token ? token : "NULL", MODEL_IDENTIFIER_STRING, MODEL_GUID);
+        return NULL;
+    }
+    inst = (Instance *)allocate(1, sizeof(Instance));
+    if (!inst) {
+        log_error(&reporter, "%s: out of memory", function);
+        return NULL;
+    }
+    memset(inst, 0, sizeof *inst);
+    length = strlen(name) + 1;
+    inst->name = (char *)allocate(length, 1);
+    if (!inst->name) {
+        release(inst);
+        log_error(&reporter, "%s: out of memory", function);
+        return NULL;
+    }
+    memcpy(inst->name, name, length);
+    inst->type = type;
+    inst->emit = emit;
+    inst->api_logger = api_logger;
+    inst->allocate = allocate;
+    inst->release = release;
+    inst->environment = environment;
+    inst->logging_on = logging_on ? 1 : 0;
+    core_reset(inst);
+    return inst;
+}
+
+void core_free(Instance *inst)
+{
+    if (!inst) return;
+    inst->release(inst->name);
+    inst->release(inst);
+}
+
+Status core_setup(Instance *inst, const char *function, double start, int stop_defined, double stop)
+{
+    if (!isfinite(start)) {
+        log_error(inst, "%s: startTime = %g must be a finite number", function, start);
+        return STATUS_ERROR;
+    }
+    if (stop_defined && !(stop >= start)) {
+        log_error(inst, "%s: stopTime = %g must not be before startTime = %g", function, stop, start);
+        return STATUS_ERROR;
+    }
+    inst->s.time = start;
+    inst->s.last_successful_time = start;
+    return STATUS_OK;
+}
+
+Status core_exit_initialization(Instance *inst, const char *function)
+{
+    inst->constants_valid = 0;
+    if (!ensure_constants(inst, function)) return STATUS_ERROR;
+#if N_STATES > 0
+    if (!state_acceptable(inst, inst->s.time, inst->s.real)) {
+        char reason[256];
+        if (model_explain_singularity(&inst->constants, inst->s.time, inst->s.real, reason, sizeof reason))
+            log_error(inst, "%s: the start values of the states give a singular "
+                      "configuration: %s", function, reason);
+        else
+            log_error(inst, "%s: the start values of the states give a singular configuration "
+                      "or non-finite derivatives or outputs", function);
+        return STATUS_ERROR;
+    }
+#else
+    {   /* without states, the outputs decide: the same promise as the models with states */
+        double real[N_REAL];
+        memcpy(real, inst->s.real, sizeof real);
+        if (!model_outputs(&inst->constants, inst->s.time, NULL, real) || first_non_finite(real, N_REAL) >= 0) {
+            log_error(inst, "%s: the start values of the inputs give a singular configuration "
+                      "or non-finite outputs", function);
+            return STATUS_ERROR;
+        }
+    }
+#endif
+    memset(&inst->s.integrator, 0, sizeof inst->s.integrator); /* counters count from here */
+    restart_integrator(inst);
+    inst->s.last_successful_time = inst->s.time;
+    inst->outputs_valid = 0;
+    inst->s.machine_state = inst->type == INTERFACE_CO_SIMULATION ? MS_STEP_COMPLETE : MS_EVENT;
+    return STATUS_OK;
+}
+
+/* ---------------------------------------------------------------- variable access */
+
+static unsigned settable_in(const VariableInfo *v)
+{
+    if (v->causality == CAUSALITY_PARAMETER) {
+        return v->variability == VARIABILITY_TUNABLE
+                   ? MS_INSTANTIATED | MS_INITIALIZATION | MS_STEP_COMPLETE | MS_EVENT
+                   : MS_INSTANTIATED | MS_INITIALIZATION;
+    }
+    if (v->causality == CAUSALITY_INPUT)
+        return MS_INSTANTIATED | MS_INITIALIZATION | MS_STEP_COMPLETE | MS_EVENT | MS_CONTINUOUS;
+    if (v->causality == CAUSALITY_OUTPUT && v->initial != INITIAL_CALCULATED)
+        return MS_INSTANTIATED | MS_INITIALIZATION;
+    return 0;
+}
+
+static const char *kind_of(const VariableInfo *v)
+{
+    if (v->causality == CAUSALITY_PARAMETER)
+        return v->variability == VARIABILITY_TUNABLE ? "a tunable parameter" : "a fixed parameter";
+    if (v->causality == CAUSALITY_INPUT) return "an input";
+    if (v->causality == CAUSALITY_OUTPUT) return v->initial == INITIAL_CALCULATED ? "a calculated output" : "a state";
+    return "a calculated variable";
+}
+
+/* A finite value within the variable's range; logs and returns 0 otherwise. */
+static int value_in_range(Instance *inst, const char *function, const VariableInfo *v, unsigned int vr,
+                          double value)
+{
+    if (!isfinite(value)) {
+        log_error(inst, "%s: variable %s (value reference %u) = %g is not a finite number (allowed range [%g, %g])",
+                  function, v->name, vr, value, v->min, v->max);
+        return 0;
+    }
+    if (value < v->min || value > v->max) {
+        log_error(inst, "%s: variable %s (value reference %u) = %.17g is out of its allowed range [%g, %g]", function,
+                  v->name, vr, value, v->min, v->max);
+        return 0;
+    }
+    return 1;
+}
+
+/* Every check a value must pass before it is stored; logs and returns 0 on the first failure. */
+static int value_acceptable(Instance *inst, const char *function, const VariableInfo *v, unsigned int vr,
+                            double value)
+{
+    const unsigned allowed = settable_in(v);
+    char states[256];
+    if (!(allowed & (unsigned)inst->s.machine_state)) {
+        core_describe_states(allowed, states, sizeof states);
+        log_error(inst, "%s: variable %s (value reference %u) is %s and cannot be set in state %s (settable in: %s)",
+                  function, v->name, vr, kind_of(v), core_state_name(inst->s.machine_state), states);
+        return 0;
+    }
+    return value_in_range(inst, function, v, vr, value);
+}
+
+/* What follows from a stored value: derived constants, integrator history, cached outputs. */
+static void value_stored(Instance *inst, const VariableInfo *v, unsigned int vr)
+{
+    if (v->causality == CAUSALITY_PARAMETER) {
+        inst->constants_valid = 0;
+        restart_integrator(inst); /* solver, h or tol may have changed */
+    } else if (v->causality == CAUSALITY_INPUT) {
+        const int k = input_index(vr);
+        if (k >= 0) inst->s.input_derivative[k] = 0.0; /* setting the input again clears its slope */
+        /* After a step the outputs stay those of the step's end until the next step. */
+        if (inst->s.machine_state == MS_STEP_COMPLETE) return;
+    } else {
+        restart_integrator(inst);
+    }
+    inst->outputs_valid = 0;
+}
+
+static int real_reference_known(Instance *inst, const char *function, unsigned int vr)
+{
+    if (vr < N_REAL) return 1;
+    log_error(inst, "%s: unknown value reference %u (this FMU's Real variables are 0..%d)", function, vr, N_REAL - 1);
+    return 0;
+}
+
+static int integer_reference_known(Instance *inst, const char *function, unsigned int vr)
+{
+    if (vr >= INTEGER_VR_BASE && vr < INTEGER_VR_BASE + N_INTEGER) return 1;
+    if (N_INTEGER > 0)
+        log_error(inst, "%s: unknown value reference %u (this FMU's Integer variables are %d..%d)", function, vr,
+                  INTEGER_VR_BASE, INTEGER_VR_BASE + N_INTEGER - 1);
+    else
+        log_error(inst, "%s: unknown value reference %u (this FMU has no Integer variables)", function, vr);
+    return 0;
+}
+
+Status core_get_real(Instance *inst, const char *function, const unsigned int vr[], size_t nvr, double value[])
+{
+    Status status;
+    size_t i;
+    if (!core_arrays_present(inst, function, nvr, vr, value)) return STATUS_ERROR;
+    for (i = 0; i < nvr; i++)
+        if (!real_reference_known(inst, function, vr[i])) return STATUS_ERROR;
+    /* Parameters, inputs and states hold what was set: reading only those needs no outputs, and stays
+     * STATUS_OK where the outputs are undefined. */
+    status = STATUS_OK;
+    for (i = 0; i < nvr; i++)
+        if (!settable_in(&REAL_VARIABLES[vr[i]])) {
+            status = ensure_outputs(inst, function);
+            break;
+        }
+    if (status == STATUS_ERROR) return status;
+    /* With STATUS_DISCARD, values that are not finite are not handed out: those entries stay as they were. */
+    for (i = 0; i < nvr; i++)
+        if (status == STATUS_OK || isfinite(inst->s.real[vr[i]])) value[i] = inst->s.real[vr[i]];
+    return status;
+}
+
+Status core_set_real(Instance *inst, const char *function, const unsigned int vr[], size_t nvr, const double value[])
+{
+    size_t i;
+    if (!core_arrays_present(inst, function, nvr, vr, value)) return STATUS_ERROR;
+    /* All values are checked before any is stored: a rejected call changes nothing. */
+    for (i = 0; i < nvr; i++) {
+        if (!real_reference_known(inst, function, vr[i])) return STATUS_ERROR;
+        if (!value_acceptable(inst, function, &REAL_VARIABLES[vr[i]], vr[i], value[i])) return STATUS_ERROR;
+    }
+    for (i = 0; i < nvr; i++) {
+        inst->s.real[vr[i]] = value[i];
+        value_stored(inst, &REAL_VARIABLES[vr[i]], vr[i]);
+    }
+    return STATUS_OK;
+}
+
+static int64_t integer_at(const void *values, int width, size_t i)
+{
+    return width == 4 ? (int64_t)((const int32_t *)values)[i] : ((const int64_t *)values)[i];
+}
+
+Status core_get_integer(Instance *inst, const char *function, const unsigned int vr[], size_t nvr, void *value,
+                        int width)
+{
+    const int64_t most = width == 4 ? INT32_MAX : INT64_MAX;
+    int64_t counted[3];
+    size_t i;
+    if (!core_arrays_present(inst, function, nvr, vr, value)) return STATUS_ERROR;
+    for (i = 0; i < nvr; i++)
+        if (!integer_reference_known(inst, function, vr[i])) return STATUS_ERROR;
+    counted[0] = (int64_t)(inst->s.integrator.n_rhs > (uint64_t)most ? (uint64_t)most : inst->s.integrator.n_rhs);
+    counted[1] = (int64_t)(inst->s.integrator.n_steps > (uint64_t)most ? (uint64_t)most : inst->s.integrator.n_steps);
+    counted[2] = (int64_t)(inst->s.integrator.n_rejected > (uint64_t)most ? (uint64_t)most
+                                                                          : inst->s.integrator.n_rejected);
+    for (i = 0; i < nvr; i++) {
+        const int k = (int)(vr[i] - INTEGER_VR_BASE);
+        int64_t number = inst->s.integer[k];
+#if N_STATES > 0
+        if (k == INT_n_rhs) number = counted[0];
+        if (k == INT_n_steps) number = counted[1];
+        if (k == INT_n_rejected) number = counted[2];
+#else
+        (void)counted;
+#endif
+        if (width == 4)
+            ((int32_t *)value)[i] = (int32_t)number;
+        else
+            ((int64_t *)value)[i] = number;
+    }
+    return STATUS_OK;
+}
+
+Status core_set_integer(Instance *inst, const char *function, const unsigned int vr[], size_t nvr, const void *value,
+                        int width)
+{
+    size_t i;
+    if (!core_arrays_present(inst, function, nvr, vr, value)) return STATUS_ERROR;
+    for (i = 0; i < nvr; i++) {
+        if (!integer_reference_known(inst, function, vr[i])) return STATUS_ERROR;
+#if N_INTEGER > 0
+        if (!value_acceptable(inst, function, &INTEGER_VARIABLES[vr[i] - INTEGER_VR_BASE], vr[i],
+                              (double)integer_at(value, width, i)))
+            return STATUS_ERROR;
+#endif
+    }
+#if N_INTEGER > 0
+    for (i = 0; i < nvr; i++) { /* within the variable's range, so within int32 */
+        inst->s.integer[vr[i] - INTEGER_VR_BASE] = (int32_t)integer_at(value, width, i);
+        value_stored(inst, &INTEGER_VARIABLES[vr[i] - INTEGER_VR_BASE], vr[i]);
+    }
+#else
+    (void)integer_at;
+#endif
+    return STATUS_OK;
+}
+
+Status core_no_such_variables(Instance *inst, const char *function, size_t nvr, const unsigned int vr[],
+                              const char *type)
+{
+    if (nvr == 0) return STATUS_OK;
+    log_error(inst, "%s: unknown value reference %u (this FMU has no %s variables)", function, vr ? vr[0] : 0u, type);
+    return STATUS_ERROR;
+}
+
+/* ---------------------------------------------------------------- FMU state */
+
+#define STATE_MAGIC 0x4d554650u /* "PFUM" */
+#define STATE_FORMAT 1u
+#define GUID_SLOT 48
+
+typedef struct {
+    uint32_t magic;
+    uint32_t format;
+    char guid[GUID_SLOT];
+    SimState s;
+} StoredState;
+
+static int state_is_ours(Instance *inst, const char *function, const StoredState *stored)
+{
+    if (stored->magic != STATE_MAGIC || stored->format != STATE_FORMAT) {
+        log_error(inst, "%s: the FMU state was not made by this FMU (%s)", function, MODEL_IDENTIFIER_STRING);
+        return 0;
+    }
+    if (strncmp(stored->guid, MODEL_GUID, GUID_SLOT) != 0) {
+        log_error(inst, "%s: the FMU state belongs to another FMU (GUID %.48s, this FMU is %s)", function,
+                  stored->guid, MODEL_GUID);
+        return 0;
+    }
+    return 1;
+}
+
+/* Where a state goes: the importer's handle, if it is one of ours, or new zeroed memory; NULL (logged)
+ * otherwise. */
+static StoredState *state_slot(Instance *inst, const char *function, void *handle)
+{
+    StoredState *stored = (StoredState *)handle;
+    if (stored) return state_is_ours(inst, function, stored) ? stored : NULL;
+    stored = (StoredState *)inst->allocate(1, sizeof(StoredState));
+    if (!stored) {
+        log_error(inst, "%s: out of memory", function);
+        return NULL;
+    }
+    memset(stored, 0, sizeof *stored);
+    return stored;
+}
+
+Status core_get_state(Instance *inst, const char *function, void **FMUstate)
+{
+    StoredState *stored;
+    if (!FMUstate) {
+        log_error(inst, "%s: FMUstate pointer is NULL", function);
+        return STATUS_ERROR;
+    }
+    stored = state_slot(inst, function, *FMUstate);
+    if (!stored) return STATUS_ERROR;
+    if (!*FMUstate) {
+        stored->magic = STATE_MAGIC;
+        stored->format = STATE_FORMAT;
+        strncpy(stored->guid, MODEL_GUID, GUID_SLOT - 1);
+    }
+    stored->s = inst->s;
+    *FMUstate = stored;
+    return STATUS_OK;
+}
+
+static int machine_state_fits(const Instance *inst, int32_t state)
+{
+    const unsigned valid = inst->type == INTERFACE_CO_SIMULATION ? CS_ANY : ME_ANY;
+    return state != 0 && (state & (state - 1)) == 0 && ((unsigned)state & valid);
+}
+
+/* A deserialized state passes the setters' checks: every value a user can set (parameters, inputs,
+ * states) finite and in range, the parameters consistent together, and the framework's own numbers
+ * (time, machine state, integrator memory) sane. Logs the first problem. */
+static int restored_state_valid(Instance *inst, const char *function, const SimState *s)
+{
+    char message[256];
+    ModelConst constants;
+    int i;
+    if (!isfinite(s->time) || !isfinite(s->last_successful_time) || !machine_state_fits(inst, s->machine_state)) {
+        log_error(inst, "%s: the FMU state's time %g or machine state %d is invalid", function, s->time,
+                  (int)s->machine_state);
+        return 0;
+    }
+    for (i = 0; i < N_REAL; i++)
+        if (settable_in(&REAL_VARIABLES[i]) && !value_in_range(inst, function, &REAL_VARIABLES[i], (unsigned int)i,
+                                                               s->real[i]))
+            return 0;
+#if N_INTEGER > 0
+    for (i = 0; i < N_INTEGER; i++)
+        if (INTEGER_VARIABLES[i].causality == CAUSALITY_PARAMETER &&
+            !value_in_range(inst, function, &INTEGER_VARIABLES[i], (unsigned int)(INTEGER_VR_BASE + i),
+                            s->integer[i]))
+            return 0;
+#endif
+#if N_INPUTS > 0
+    for (i = 0; i < N_INPUTS; i++)
+        if (!isfinite(s->input_derivative[i])) {
+            log_error(inst, "%s: the FMU state's derivative of input %s is not finite", function,
+                      REAL_VARIABLES[INPUT_VRS[i]].name);
+            return 0;
+        }
+#endif
+    if (s->integrator.ab_count < 0 || s->integrator.ab_count > AB_MAX_STEPS || s->integrator.ab_head < 0 ||
+        s->integrator.ab_head >= AB_MAX_STEPS || !isfinite(s->integrator.ab_step) ||
+        !(s->integrator.rkf_proposal >= 0.0) || !isfinite(s->integrator.rkf_proposal)) {
+        log_error(inst, "%s: the FMU state's integrator memory is invalid", function);
+        return 0;
+    }
+    if (model_prepare(s->real, s->integer, &constants, message, sizeof message)) {
+        log_error(inst, "%s: %s", function, message);
+        return 0;
+    }
+    return 1;
+}
+
+Status core_set_state(Instance *inst, const char *function, const void *FMUstate)
+{
+    const StoredState *stored = (const StoredState *)FMUstate;
+    if (!stored) {
+        log_error(inst, "%s: FMUstate is NULL", function);
+        return STATUS_ERROR;
+    }
+    if (!state_is_ours(inst, function, stored)) return STATUS_ERROR;
+    if (!machine_state_fits(inst, stored->s.machine_state)) {
+        log_error(inst, "%s: the FMU state was taken from a %s instance, this one is %s", function,
+                  inst->type == INTERFACE_CO_SIMULATION ? "Model Exchange" : "Co-Simulation",
+                  inst->type == INTERFACE_CO_SIMULATION ? "Co-Simulation" : "Model Exchange");
+        return STATUS_ERROR;
+    }
+    /* An in-memory state was made by this FMU's core_get_state from checked values: no second check here,
+     * where masters roll back every iteration (a deserialized one is checked, it comes from outside). */
+    inst->s = stored->s;
+    /* A restored state is a good state: a failed step is behind it. */
+    if (inst->s.machine_state == MS_STEP_FAILED) inst->s.machine_state = MS_STEP_COMPLETE;
+    inst->constants_valid = 0;
+    inst->outputs_valid = 0;
+    return STATUS_OK;
+}
+
+Status core_free_state(Instance *inst, const char *function, void **FMUstate)
+{
+    if (!FMUstate) {
+        log_error(inst, "%s: FMUstate pointer is NULL", function);
+        return STATUS_ERROR;
+    }
+    if (*FMUstate) {
+        if (!state_is_ours(inst, function, (const StoredState *)*FMUstate)) return STATUS_ERROR;
+        ((StoredState *)*FMUstate)->magic = 0; /* a second free of the same state is caught */
+        inst->release(*FMUstate);
+        *FMUstate = NULL;
+    }
+    return STATUS_OK;
+}
+
+/* Serialized layout: magic, format, size (8 bytes), GUID (48 bytes), SimState, FNV-1a checksum of all
+ * that precedes it (8 bytes). The SimState holds numbers only. */
+#define SERIAL_HEADER (4 + 4 + 8 + GUID_SLOT)
+#define SERIAL_SIZE (SERIAL_HEADER + sizeof(SimState) + 8)
+
+static uint64_t checksum(const unsigned char *bytes, size_t n)
+{
+    uint64_t hash = 1469598103934665603ull;
+    size_t i;
+    for (i = 0; i < n; i++) {
+        hash ^= bytes[i];
+        hash *= 1099511628211ull;
+    }
+    return hash;
+}
+
+Status core_serialized_size(Instance *inst, const char *function, const void *FMUstate, size_t *size)
+{
+    if (!FMUstate || !size) {
+        log_error(inst, "%s: FMUstate and size must not be NULL", function);
+        return STATUS_ERROR;
+    }
+    if (!state_is_ours(inst, function, (const StoredState *)FMUstate)) return STATUS_ERROR;
+    *size = SERIAL_SIZE;
+    return STATUS_OK;
+}
+
+Status core_serialize(Instance *inst, const char *function, const void *FMUstate, unsigned char *serializedState,
+                      size_t size)
+{
+    const StoredState *stored = (const StoredState *)FMUstate;
+    unsigned char *out = (unsigned char *)serializedState;
+    uint64_t total = SERIAL_SIZE, sum;
+    if (!stored || !serializedState) {
+        log_error(inst, "%s: FMUstate and serializedState must not be NULL", function);
+        return STATUS_ERROR;
+    }
+    if (!state_is_ours(inst, function, stored)) return STATUS_ERROR;
+    if (size != SERIAL_SIZE) {
+        log_error(inst, "%s: size = %lu, but the serialized state takes %lu bytes", function,
+                  (unsigned long)size, (unsigned long)SERIAL_SIZE);
+        return STATUS_ERROR;
+    }
+    memcpy(out, &stored->magic, 4);
+    memcpy(out + 4, &stored->format, 4);
+    memcpy(out + 8, &total, 8);
+    memcpy(out + 16, stored->guid, GUID_SLOT);
+    memcpy(out + SERIAL_HEADER, &stored->s, sizeof(SimState));
+    sum = checksum(out, SERIAL_SIZE - 8);
+    memcpy(out + SERIAL_SIZE - 8, &sum, 8);
+    return STATUS_OK;
+}
+
+Status core_deserialize(Instance *inst, const char *function, const unsigned char *serializedState, size_t size,
+                        void **FMUstate)
+{
+    const unsigned char *in = (const unsigned char *)serializedState;
+    StoredState decoded, *target;
+    uint64_t total, sum;
+    if (!serializedState || !FMUstate) {
+        log_error(inst, "%s: serializedState and FMUstate must not be NULL", function);
+        return STATUS_ERROR;
+    }
+    if (size != SERIAL_SIZE) {
+        log_error(inst, "%s: size = %lu, but a serialized state of %s takes %lu bytes", function,
+                  (unsigned long)size, MODEL_IDENTIFIER_STRING, (unsigned long)SERIAL_SIZE);
+        return STATUS_ERROR;
+    }
+    memcpy(&sum, in + SERIAL_SIZE - 8, 8);
+    memcpy(&total, in + 8, 8);
+    if (sum != checksum(in, SERIAL_SIZE - 8) || total != SERIAL_SIZE) {
+        log_error(inst, "%s: the serialized state is corrupt (checksum mismatch)", function);
+        return STATUS_ERROR;
+    }
+    memset(&decoded, 0, sizeof decoded);
+    memcpy(&decoded.magic, in, 4);
+    memcpy(&decoded.format, in + 4, 4);
+    memcpy(decoded.guid, in + 16, GUID_SLOT);
+    decoded.guid[GUID_SLOT - 1] = '\0';
+    memcpy(&decoded.s, in + SERIAL_HEADER, sizeof(SimState));
+    if (!state_is_ours(inst, function, &decoded)) return STATUS_ERROR;
+    if (!restored_state_valid(inst, function, &decoded.s)) return STATUS_ERROR;
+    target = state_slot(inst, function, *FMUstate);
+    if (!target) return STATUS_ERROR;
+    *target = decoded;
+    *FMUstate = target;
+    return STATUS_OK;
+}
+
+/* ---------------------------------------------------------------- Model Exchange */
+
+Status core_set_time(Instance *inst, const char *function, double time)
+{
+    if (!isfinite(time)) {
+        log_error(inst, "%s: time = %g is not a finite number", function, time);
+        return STATUS_ERROR;
+    }
+    inst->s.time = time;
+    return STATUS_OK;
+}
+
+static int state_count_matches(Instance *inst, const char *function, size_t n, size_t expected, const void *array)
+{
+    if (n != expected) {
+        log_error(inst, "%s: array length %lu, but this FMU has %lu", function, (unsigned long)n,
+                  (unsigned long)expected);
+        return 0;
+    }
+    return core_arrays_present(inst, function, n, array, array);
+}
+
+Status core_set_continuous_states(Instance *inst, const char *function, const double x[], size_t nx)
+{
+    size_t i;
+    if (!state_count_matches(inst, function, nx, N_STATES, x)) return STATUS_ERROR;
+    for (i = 0; i < nx; i++)
+        if (!isfinite(x[i])) {
+            log_error(inst, "%s: state %s = %g is not a finite number", function, REAL_VARIABLES[i].name,
+                      x[i]);
+            return STATUS_ERROR;
+        }
+    for (i = 0; i < nx; i++) inst->s.real[i] = x[i];
+    inst->outputs_valid = 0;
+    return STATUS_OK;
+}
+
+Status core_get_derivatives(Instance *inst, const char *function, double derivatives[], size_t nx)
+{
+    Status status;
+    size_t i;
+    if (!state_count_matches(inst, function, nx, N_STATES, derivatives)) return STATUS_ERROR;
+    status = ensure_outputs(inst, function);
+    if (status == STATUS_ERROR) return status;
+    for (i = 0; i < nx; i++)
+        if (status == STATUS_OK || isfinite(inst->s.real[N_STATES + i])) derivatives[i] = inst->s.real[N_STATES + i];
+    return status;
+}
+
+Status core_get_continuous_states(Instance *inst, const char *function, double x[], size_t nx)
+{
+    size_t i;
+    if (!state_count_matches(inst, function, nx, N_STATES, x)) return STATUS_ERROR;
+    for (i = 0; i < nx; i++) x[i] = inst->s.real[i];
+    return STATUS_OK;
+}
+
+Status core_get_nominals(Instance *inst, const char *function, double x_nominal[], size_t nx)
+{
+    size_t i;
+    if (!state_count_matches(inst, function, nx, N_STATES, x_nominal))
+        return STATUS_ERROR;
+    for (i = 0; i < nx; i++) x_nominal[i] = 1.0;
+    return STATUS_OK;
+}
+
+/* ---------------------------------------------------------------- Co-Simulation */
+
+/* The arrays of a derivative call are there and every order is 1 (the only one supported). */
+static int derivative_call_valid(Instance *inst, const char *function, size_t nvr, const unsigned int vr[],
+                                 const int32_t order[], const double value[])
+{
+    size_t i;
+    if (!core_arrays_present(inst, function, nvr, vr, value) || !core_arrays_present(inst, function, nvr, order, order))
+        return 0;
+    for (i = 0; i < nvr; i++)
+        if (order[i] != 1) {
+            log_error(inst, "%s: derivative order %d is not supported (allowed range [1, 1]: "
+                      "maxOutputDerivativeOrder is 1)", function, order[i]);
+            return 0;
+        }
+    return 1;
+}
+
+Status core_set_input_derivatives(Instance *inst, const char *function, const unsigned int vr[], size_t nvr,
+                                  const int32_t order[], const double value[])
+{
+    size_t i;
+    if (!derivative_call_valid(inst, function, nvr, vr, order, value)) return STATUS_ERROR;
+    for (i = 0; i < nvr; i++) {
+        if (input_index(vr[i]) < 0) {
+            log_error(inst, "%s: value reference %u is not a Real input", function, vr[i]);
+            return STATUS_ERROR;
+        }
+        if (!isfinite(value[i])) {
+            log_error(inst, "%s: derivative of %s (value reference %u) = %g is not a finite "
+                      "number", function, REAL_VARIABLES[vr[i]].name, vr[i], value[i]);
+            return STATUS_ERROR;
+        }
+    }
+    for (i = 0; i < nvr; i++) inst->s.input_derivative[input_index(vr[i])] = value[i];
+    return STATUS_OK;
+}
+
+Status core_get_output_derivatives(Instance *inst, const char *function, const unsigned int vr[], size_t nvr,
+                                   const int32_t order[], double value[])
+{
+    double rate[N_REAL];
+    double *dx = NULL;
+    Status status;
+    size_t i;
+    if (!derivative_call_valid(inst, function, nvr, vr, order, value)) return STATUS_ERROR;
+    for (i = 0; i < nvr; i++) {
+        if (!real_reference_known(inst, function, vr[i])) return STATUS_ERROR;
+        if (REAL_VARIABLES[vr[i]].causality != CAUSALITY_OUTPUT) {
+            log_error(inst, "%s: variable %s (value reference %u) is not an output", function,
+                      REAL_VARIABLES[vr[i]].name, vr[i]);
+            return STATUS_ERROR;
+        }
+    }
+    status = ensure_outputs(inst, function);
+    if (status != STATUS_OK) return status;
+    memset(rate, 0, sizeof rate);
+#if N_STATES > 0
+    dx = inst->s.real + N_STATES;
+    for (i = 0; i < N_STATES; i++) rate[i] = dx[i];
+#endif
+    model_output_rates(&inst->constants, inst->s.time, inst->s.real, dx, inst->s.input_derivative, rate);
+    for (i = 0; i < nvr; i++)
+        if (!isfinite(rate[vr[i]])) { /* in-range values can still overflow (huge parameters, 0 times inf) */
+            log_discard(inst, "%s: the derivative of %s (value reference %u) is not finite "
+                        "for the current parameters, inputs and states; no value handed out", function,
+                        REAL_VARIABLES[vr[i]].name, vr[i]);
+            return STATUS_DISCARD;
+        }
+    for (i = 0; i < nvr; i++) value[i] = rate[vr[i]];
+    return STATUS_OK;
+}
+
+Status core_do_step(Instance *inst, const char *function, double t, double H)
+{
+    Status status;
+    if (!isfinite(t) || fabs(t - inst->s.time) > 1e-9 * fmax(1.0, fabs(t))) {
+        log_error(inst, "%s: currentCommunicationPoint = %.17g is not the FMU's time %.17g "
+                  "(allowed deviation 1e-9 max(1, |t|))", function, t, inst->s.time);
+        return STATUS_ERROR;
+    }
+    if (!(H > 0.0) || !isfinite(H) || !isfinite(t + H)) {
+        log_error(inst, "%s: communicationStepSize = %g is not allowed (allowed range (0, inf), finite)", function, H);
+        return STATUS_ERROR;
+    }
+    if (!(t + H > t)) { /* the state would move while the time stays */
+        log_error(inst, "%s: communicationStepSize = %g does not advance the time from "
+                  "currentCommunicationPoint = %.17g (its resolution there is %g)", function, H, t,
+                  nextafter(t, INFINITY) - t);
+        return STATUS_ERROR;
+    }
+    if (!ensure_constants(inst, function)) return STATUS_ERROR;
+    status = step_to(inst, function, t, H);
+    if (status == STATUS_DISCARD) inst->s.machine_state = MS_STEP_FAILED;
+    return status;
+}
+
