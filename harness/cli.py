@@ -46,6 +46,13 @@ class OneLineParser(argparse.ArgumentParser):
         self.exit(2, f"harness: error: {message} (see {self.prog} --help)\n")
 
 
+def system_inputs(system: str) -> tuple[str | Path, ...]:
+    """What a system's command reads: the file or folder, and for an .ssd file the folder of its
+    parameter files and FMUs."""
+    path = Path(system)
+    return (system, path.parent) if path.suffix.lower() == ".ssd" else (system,)
+
+
 def command_simulate(args: argparse.Namespace) -> int:
     from harness.fmi.fmus import locate_fmu
     from harness.fmi.simulation import simulate
@@ -96,7 +103,7 @@ def command_run(args: argparse.Namespace) -> int:
     from harness.cosim.master import Master, MasterOptions
     from harness.cosim.system import load_system
     from harness.output import csv_header, output_file, written
-    out = output_file(args.out, "--out", (args.system,))
+    out = output_file(args.out, "--out", system_inputs(args.system))
     with load_system(args.system) as system:
         stop = args.stop if args.stop is not None else system.stop
         step = args.step if args.step is not None else system.step
@@ -198,7 +205,7 @@ def command_plan(args: argparse.Namespace) -> int:
     from harness.studies.planner import plan_scene, write_plan_csv
     from harness.cosim.system import load_system
     from harness.output import output_file
-    out = output_file(args.out, "--out", (args.scene,)) if args.out else None
+    out = output_file(args.out, "--out", system_inputs(args.scene)) if args.out else None
     build_fmus()
     with load_system(args.scene) as system:
         tolerance = args.tolerance
@@ -347,6 +354,8 @@ def main(argv: list[str] | None = None) -> int:
         where = f"{error.filename}: " if error.filename else ""
         return _report("error", f"{where}{error.strerror or error}", 2)
     except Exception as error:  # a fault of the harness, not of the input: say so in one line
+        if isinstance(error, RuntimeError) and str(error).startswith("Symlink loop"):  # pathlib's, in Python 3.11
+            return _report("error", f"{error} (a loop of symbolic links)", 2)
         if os.environ.get("PENDULUM_TRACEBACK") == "1":
             raise
         return _report("internal error", f"{type(error).__name__}: {error} (set PENDULUM_TRACEBACK=1 for the "

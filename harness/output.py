@@ -36,28 +36,38 @@ def output_file(text: str | Path, option: str, inputs: tuple[str | Path | None, 
     if formats is not None and path.suffix.lower() not in formats:
         raise HarnessError(f"{option} {path}: the file name must end in {', '.join(formats)}")
     if path.is_symlink():
-        path = path.resolve()
+        path = _resolved(path, option)
     if path.is_dir():
         raise HarnessError(f"{option} {path}: is a folder, not a file")
     if path.exists() and not path.is_file():  # a device such as /dev/null would be replaced by the rename
         raise HarnessError(f"{option} {path}: is not a regular file (a device, pipe or socket); choose a file")
-    target = path.resolve()
+    target = _resolved(path, option)
     for given in inputs:
         if given is None or str(given) == "":
             continue
-        source = Path(given).resolve()
+        try:
+            source = Path(given).resolve()
+        except (RuntimeError, OSError):  # a link loop: the command's own reading reports it
+            continue
         if target == source:
             raise HarnessError(f"{option} {path}: is this command's input; choose another file")
         if source.is_dir() and path.exists() and target.is_relative_to(source):
             raise HarnessError(f"{option} {path}: is a file of this command's input folder {given}; "
                                "choose another file")
     for other, taken in (outputs or {}).items():
-        if target == Path(taken).resolve():
+        if target == _resolved(Path(taken), other):
             raise HarnessError(f"{option} {path}: is already the {other} file; choose another file")
     if path.suffix.lower() in (".fmu", ".ssp", ".ssd", ".json", ".toml") and path.exists():
         raise HarnessError(f"{option} {path}: is an existing {path.suffix} input file; choose another file")
     _check_parents(path, option)
     return path
+
+
+def _resolved(path: Path, option: str) -> Path:
+    try:
+        return path.resolve()
+    except (RuntimeError, OSError):  # Python 3.11 raises RuntimeError for a loop of symbolic links
+        raise HarnessError(f"{option} {path}: is a loop of symbolic links") from None
 
 
 def _check_parents(path: Path, option: str) -> None:
@@ -109,6 +119,7 @@ class _Sink:
 def written(path: Path, header: str | None = None, binary: bool = False) -> Iterator[_Sink]:
     """A text sink whose content replaces `path` when the block ends (see the module's note). When
     the block fails before anything but the header was written, `path` is left as it was."""
+    path = _writable(path)
     try:
         path.parent.mkdir(parents=True, exist_ok=True)
         # a short prefix: the temporary name must fit where the target's own name just fits
@@ -128,6 +139,18 @@ def written(path: Path, header: str | None = None, binary: bool = False) -> Iter
         raise
     finally:
         _finish(sink, temporary)
+
+
+def _writable(path: Path) -> Path:
+    """The file a write replaces, also for names a command chooses itself inside an output folder: a
+    symbolic link is written through, a folder, device or pipe is refused (the rename would replace it)."""
+    if path.is_symlink():
+        path = _resolved(path, "output")
+    if path.is_dir():
+        raise HarnessError(f"{path}: is a folder, not a file; move it away or choose another output folder")
+    if path.exists() and not path.is_file():
+        raise HarnessError(f"{path}: is not a regular file (a device, pipe or socket); choose another output folder")
+    return path
 
 
 def _mode_for(path: Path) -> int:

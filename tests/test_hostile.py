@@ -748,3 +748,99 @@ def test_structured_variable_names_keep_the_csv_in_shape(workspace, fmu_paths):
         rows = list(csv.reader(stream))
     assert set(names.values()) <= set(rows[0]) and all(len(row) == len(rows[0]) for row in rows[1:])
     assert len(rows) == 7 and all(math.isfinite(float(cell)) for row in rows[1:] for cell in row)
+
+
+# ---- the second review: loops, text no file can name, object files, derived outputs ----------------
+
+def test_symbolic_link_loops_are_one_line(workspace):
+    loop = workspace / "loop"
+    if not loop.is_symlink():
+        loop.symlink_to("loop")
+    for argv in (["simulate", "SimplePendulum", "--stop", "0.05", "--out", str(loop)],
+                 ["simulate", str(loop), "--out", str(workspace / "l.csv")],
+                 ["run", str(loop), "--out", str(workspace / "l.csv")]):
+        assert cli(argv, workspace).code == 2
+
+
+@pytest.mark.parametrize("text,words", [
+    ('{"components": {"c": {"fmu": "a\\u0000b"}}}', "holds a NUL or an unpaired surrogate"),
+    ('{"name": "\\udfff", "components": {"c": {"fmu": "SimplePendulum"}}}', "holds a NUL or an unpaired surrogate"),
+    ('{"components": {"c": {"fmu": "SimplePendulum", "traces": []}}}', '"traces" is empty')])
+def test_scene_text_no_file_or_terminal_can_take(workspace, text, words):
+    path = workspace / f"text{next(counter)}.json"
+    path.write_text(text)
+    outcome = cli(["run", str(path), "--stop", "0.05", "--step", "0.01", "--out", str(workspace / "t.csv")], workspace)
+    assert outcome.code == 2 and words in outcome.stderr, outcome
+
+
+def test_an_ssd_files_folder_is_an_input_too(workspace):
+    folder = workspace / f"ssdfolder{next(counter)}"
+    shutil.copytree(ssp_folder(), folder)
+    (folder / "params.ssv").write_text("keep")
+    outcome = cli(["run", str(folder / "SystemStructure.ssd"), "--stop", "0.05", "--step", "0.01", "--out",
+                   str(folder / "params.ssv")], workspace)
+    assert outcome.code == 2 and "input folder" in outcome.stderr and (folder / "params.ssv").read_text() == "keep"
+
+
+def test_fixed_output_names_are_written_through_links_and_never_over_pipes(workspace):
+    import os
+    out = workspace / f"derived{next(counter)}"
+    out.mkdir()
+    target = workspace / "elsewhere.fmu"
+    (out / "SimplePendulum.fmu").symlink_to(target)
+    source = PROJECT_ROOT / "modelDescription" / "SimplePendulum.toml"
+    assert cli(["derive", str(source), "--out", str(out)], workspace).code == 0
+    assert (out / "SimplePendulum.fmu").is_symlink() and zipfile.is_zipfile(target)
+    (out / "SimplePendulum.fmu").unlink()
+    os.mkfifo(out / "SimplePendulum.fmu")
+    outcome = cli(["derive", str(source), "--out", str(out)], workspace)
+    assert outcome.code == 2 and "is not a regular file" in outcome.stderr, outcome
+    (out / "SimplePendulum.fmu").unlink()
+    (out / "SimplePendulum.fmu").mkdir()
+    outcome = cli(["derive", str(source), "--out", str(out)], workspace)
+    assert outcome.code == 2 and "is a folder, not a file" in outcome.stderr, outcome
+
+
+@pytest.mark.parametrize("old,new,words", [
+    ('U = "-m*g*L*cos(phi)"', 'U = "-m*g*L*cos(phi)*10**1000000"', "a power of numbers beyond double precision"),
+    ('U = "-m*g*L*cos(phi)"', 'U = "-m*g*L*cos(phi) + 0*9**9**9**9"', "needs a plain number as its exponent"),
+    ('U = "-m*g*L*cos(phi)"', 'U = "-m*g*L*cos(phi)*1e400"', "a number beyond double precision"),
+    ('U = "-m*g*L*cos(phi)"', 'U = "sqrt(-1 - phi**2)"', "not a finite real number at the start values"),
+    ('L = { start = 1.0,', 'L = { start = 1' + "0" * 400 + ',', "must be a finite number, not a number of 401 digits")])
+def test_object_files_with_numbers_no_double_holds(workspace, old, new, words):
+    text = (PROJECT_ROOT / "modelDescription" / "SimplePendulum.toml").read_text()
+    assert old in text
+    path = workspace / f"object{next(counter)}.toml"
+    path.write_text(text.replace(old, new, 1))
+    outcome = cli(["derive", str(path), "--out", str(workspace / "objects")], workspace)
+    assert outcome.code == 2 and words in outcome.stderr, outcome
+
+
+@pytest.mark.timeout(60)
+def test_an_object_file_that_is_a_pipe(workspace):
+    import os
+    os.mkfifo(workspace / "pipe.toml")
+    outcome = cli(["derive", str(workspace / "pipe.toml"), "--out", str(workspace / "objects")], workspace)
+    assert outcome.code == 2 and "is not a regular file" in outcome.stderr, outcome
+
+
+def test_an_fmu_that_does_not_match_its_object_file(workspace, fmu_paths):
+    fmu = edited_fmu(fmu_paths["SimplePendulum"], workspace / "renamed.fmu",
+                     lambda name, data: data.replace(b'name="x"', b'name="xx"') if name == "modelDescription.xml"
+                     else data)
+    scene = workspace / "renamed.json"
+    scene.write_text(json.dumps({"stop": 1, "step": 0.01, "accuracy": {"position": 0.01},
+                                 "components": {"p": {"fmu": str(fmu)}}}))
+    outcome = cli(["plan", str(scene), "--workers", "1"], workspace)
+    assert outcome.code == 2 and "lacks 'x', which its object file" in outcome.stderr, outcome
+
+
+def test_a_coupled_plan_whose_reference_cannot_be_computed(workspace):
+    def stiff(scene):
+        scene["components"]["spring"]["start"]["k"] = 1e300
+    scene = json.loads(SCENE.read_text())
+    stiff(scene)
+    path = workspace / "stiff.json"
+    path.write_text(json.dumps(scene))
+    outcome = cli(["plan", str(path), "--tolerance", "0.001", "--workers", "1"], workspace)
+    assert outcome.code == 2 and "monolithic reference of this scene" in outcome.stderr, outcome

@@ -121,7 +121,8 @@ def read_json(path: Path) -> object:
     except UnicodeDecodeError as error:
         raise HarnessError(f"{path}: not UTF-8 text (byte {error.start})") from None
     try:
-        return json.loads(text, parse_constant=_no_constants, parse_int=_whole_number, object_pairs_hook=_unique_keys)
+        return _plain_text(json.loads(text, parse_constant=_no_constants, parse_int=_whole_number,
+                                      object_pairs_hook=_unique_keys), path)
     except json.JSONDecodeError as error:
         raise HarnessError(f"{path}: not valid JSON (line {error.lineno}, column {error.colno}: {error.msg})") from None
     except ValueError as error:
@@ -137,6 +138,23 @@ def _check_traces(fmu: Path, pairs: list[tuple[str, str]], where: str, read: _Re
         if name not in outputs:
             raise read.fail(where, f"names {name!r}, which is not an output of {fmu.name} "
                                    f"(outputs: {', '.join(outputs)})")
+
+
+def _plain_text(document, path: Path):
+    """Every string (keys too) can name a file and be printed: no NUL, no unpaired surrogate (JSON's
+    \\u escapes allow both)."""
+    pending = [document]
+    while pending:
+        value = pending.pop()
+        if isinstance(value, dict):
+            pending.extend(value.keys())
+            pending.extend(value.values())
+        elif isinstance(value, list):
+            pending.extend(value)
+        elif isinstance(value, str) and ("\0" in value or any("\ud800" <= c <= "\udfff" for c in value)):
+            raise HarnessError(f"{path}: the string {value.encode('utf-8', 'backslashreplace').decode()[:60]!r} "
+                               "holds a NUL or an unpaired surrogate, which no file name or text can")
+    return document
 
 
 def _whole_number(digits: str) -> int | float:
@@ -186,6 +204,8 @@ def load_scene_file(path: Path) -> System:
         if "traces" in spec:
             if not isinstance(spec["traces"], list):
                 raise read.fail(f"{where}: \"traces\"", f"must be a list of column pairs, not {_kind(spec['traces'])}")
+            if not spec["traces"]:
+                raise read.fail(f"{where}: \"traces\"", "is empty: list at least one pair of columns, or leave it out")
             traces[component_name] = [read.pair(p, f"{where}: a trace") for p in spec["traces"]]
             _check_traces(fmu, traces[component_name], f"{where}: a trace", read)
     connections = []

@@ -21,6 +21,7 @@ from harness.errors import HarnessError
 from harness.objects.generate import generate
 from harness.objects.model_description import SOURCE_FILES
 from harness.objects.object_file import ObjectFileError
+from harness.output import written
 from harness.processes import run_program
 
 PROJECT_ROOT = Path(__file__).resolve().parents[2]
@@ -81,5 +82,6 @@ def derive_fmu(object_file: str | Path, out: str | Path) -> DerivedFmu:
                 if path.is_file():
                     archive.write(path, path.relative_to(fmu).as_posix())
         target = out / f"{generated.identifier}.fmu"
-        shutil.move(str(partial), target)
+        with written(target, binary=True) as sink:  # the FMU appears whole or not at all
+            sink.write(partial.read_bytes())
     return DerivedFmu(generated.identifier, target)

@@ -70,6 +70,7 @@ def derive(spec: ObjectSpec) -> Derivation:
         raise ObjectFileError(f"{spec.path}: energy.T: T is not quadratic in the velocities "
                               f"(its second derivatives in {', '.join(map(str, v))} still depend on them)")
     _check_positive(spec, M)
+    _check_real(spec, T, U)
     L = T - U
     p = [sp.diff(T, vj) for vj in v]
     f = []
@@ -106,6 +107,18 @@ def _numeric(matrix: sp.Matrix, values: dict) -> np.ndarray:
     return np.array(matrix.subs(values).evalf(), dtype=float)
 
 
+def _check_real(spec: ObjectSpec, T: sp.Expr, U: sp.Expr) -> None:
+    """T and U are finite real numbers at the start values (sqrt(-1 - phi**2) is not, anywhere)."""
+    values = _start_values(spec)
+    for key, energy in (("energy.T", T), ("energy.U", U)):
+        try:
+            number = complex(energy.subs(values).evalf())
+        except (TypeError, ValueError):
+            number = complex("nan")
+        if not (np.isfinite(number.real) and abs(number.imag) <= 1e-12 * max(1.0, abs(number.real))):
+            raise ObjectFileError(f"{spec.path}: {key}: not a finite real number at the start values")
+
+
 def _check_positive(spec: ObjectSpec, M: sp.Matrix) -> None:
     """T must be positive in the velocities: M positive definite at the start values."""
     try:
@@ -136,10 +149,14 @@ def _linearize(spec: ObjectSpec, M: sp.Matrix, T: sp.Expr, U: sp.Expr, Q: list[s
     M0 = M.subs(at_rest)
     K0 = sp.hessian(U, q).subs(at_rest)
     values = _start_values(spec)
-    inertia = np.linalg.eigvalsh(_numeric(M0, values))
+    try:
+        inertia, stiffness = (np.linalg.eigvalsh(_numeric(M0, values)), np.linalg.eigvalsh(_numeric(K0, values)))
+    except (TypeError, ValueError, np.linalg.LinAlgError):  # Abs(q) at q = 0, say: no second derivative there
+        return None, "T or U has no finite real second derivatives at the rest state"
+    if not (np.all(np.isfinite(inertia)) and np.all(np.isfinite(stiffness))):
+        return None, "T or U has no finite second derivatives at the rest state"
     if inertia.min() <= 1e-12 * max(1.0, abs(inertia).max()):
         return None, "the mass matrix is singular at the rest state (a coordinate singularity)"
-    stiffness = np.linalg.eigvalsh(_numeric(K0, values))
     if stiffness.min() < -1e-12 * max(1.0, abs(stiffness).max()):
         return None, f"the rest state is unstable (a stiffness eigenvalue is {stiffness.min():.3g})"
     B0 = sp.Matrix(len(q), len(inputs), lambda j, k: sp.diff(Q[j], inputs[k]).subs(at_rest))

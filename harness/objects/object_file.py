@@ -122,6 +122,35 @@ class ObjectSpec:
         return any(t in e.free_symbols for e in [self.T, self.U] + [x for p in self.points for x in p.position])
 
 
+def _finite(value: int | float) -> bool:
+    try:
+        return math.isfinite(float(value))
+    except OverflowError:  # an integer beyond any double
+        return False
+
+
+LARGEST_EXPONENT = 308  # decimal digits a double can hold before the point
+
+
+def _number_problem(expr) -> str | None:
+    """Why a parsed (not yet evaluated) expression holds a number no double can: a literal beyond
+    1e308, or a power of numbers whose value would be (SymPy would compute it exactly, without end
+    for 9**9**9**9). A power of numbers needs a literal exponent."""
+    for node in sp.preorder_traversal(expr):
+        if isinstance(node, sp.Number) and node.is_finite and abs(node) > 10 ** LARGEST_EXPONENT:
+            return "a number beyond double precision"
+        if isinstance(node, sp.Pow) and not node.free_symbols:
+            base, exponent = node.args
+            if not isinstance(exponent, sp.Number):
+                return "a power of numbers needs a plain number as its exponent"
+            if isinstance(base, sp.Number) and base != 0 and \
+                    abs(float(exponent)) * math.log10(abs(float(base))) > LARGEST_EXPONENT:
+                return "a power of numbers beyond double precision"
+        if isinstance(node, sp.Pow) and isinstance(node.args[1], sp.Number) and abs(node.args[1]) > 1024:
+            return "an exponent above 1024"
+    return None
+
+
 class _Reader:
     def __init__(self, path: Path):
         self.path = path
@@ -151,8 +180,9 @@ class _Reader:
         value = data.get(key, default)
         if value is None:
             return None
-        if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
-            raise self.fail(where, f"must be a finite number, not {value!r}")
+        if isinstance(value, bool) or not isinstance(value, (int, float)) or not _finite(value):
+            shown = repr(value) if len(repr(value)) <= 40 else f"a number of {len(str(value))} digits"
+            raise self.fail(where, f"must be a finite number, not {shown}")
         return float(value)
 
     def name(self, name: str, where: str) -> str:
@@ -179,10 +209,17 @@ class _Reader:
             hint = " (write powers as **)" if bad == "^" else ""
             raise self.fail(where, f"{text!r}: {bad!r} is not allowed in an expression{hint}")
         namespace = {"__builtins__": {}, "Integer": sp.Integer, "Float": sp.Float, "Rational": sp.Rational,
-                     "Symbol": sp.Symbol, **FUNCTIONS}
+                     "Symbol": sp.Symbol, "Add": sp.Add, "Mul": sp.Mul, "Pow": sp.Pow, **FUNCTIONS}
         try:
+            unevaluated = parse_expr(text, local_dict=dict(symbols), global_dict=namespace,
+                                     transformations=standard_transformations, evaluate=False)
+            problem = _number_problem(unevaluated)
+            if problem:
+                raise self.fail(where, f"{text!r}: {problem}")
             expr = parse_expr(text, local_dict=dict(symbols), global_dict=namespace,
                               transformations=standard_transformations, evaluate=True)
+        except ObjectFileError:
+            raise
         except Exception as error:  # SymPy reports syntax errors in several exception types
             raise self.fail(where, f"{text!r} is not an expression ({type(error).__name__})") from None
         if not isinstance(expr, sp.Expr):
@@ -203,6 +240,8 @@ def read_object_file(path: str | Path, text: str | None = None) -> ObjectSpec:
     raises ObjectFileError with a one-line message."""
     path = Path(path)
     reader = _Reader(path)
+    if text is None and path.exists() and not path.is_file():  # a pipe or a device could block for ever
+        raise ObjectFileError(f"{path}: is not a regular file")
     try:
         data = tomllib.loads(path.read_text(encoding="utf-8") if text is None else text)
     except OSError as error:

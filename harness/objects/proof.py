@@ -52,9 +52,25 @@ def object_file_in(fmu: str | Path) -> ObjectSpec | None:
             return None
         text = archive.read(member).decode("utf-8", errors="replace")
     try:
-        return read_object_file(f"{fmu.name}:{member}", text)
+        spec = read_object_file(f"{fmu.name}:{member}", text)
     except ObjectFileError as error:
         raise HarnessError(str(error)) from None
+    described = {v.name for v in md.modelVariables}
+    missing = [name for name in _names_of(spec) if name not in described]
+    if missing:  # an edited model description: what the object file promises is not in the FMU
+        raise HarnessError(f"{fmu}: its model description lacks {missing[0]!r}, which its object file {member} "
+                           "defines; the FMU does not match its sources")
+    return spec
+
+
+def _names_of(spec: ObjectSpec) -> list[str]:
+    """The variables every FMU made from this object file has (harness.objects.model_description)."""
+    names = [p.name for p in spec.parameters]
+    for c in spec.coordinates:
+        names += [c.name, c.velocity, f"der({c.name})", f"der({c.velocity})"]
+    names += [name for force in spec.forces for name in force.inputs.values()]
+    names += [name for point in spec.points for name in point.outputs.values()]
+    return names + ["E_kin", "E_pot", "E", "solver", "n_rhs", "n_steps", "n_rejected"]
 
 
 def prove(fmu: str | Path, spec: ObjectSpec, samples: int = 6) -> list[Proof]:

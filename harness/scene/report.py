@@ -13,6 +13,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from harness.fmi.fmus import FMU_NAMES, PROJECT_ROOT, build_dir, build_fmus, locate_fmu
+from harness.output import written
 
 
 @dataclass
@@ -166,7 +167,8 @@ def write_index(report: Report, out: Path, seconds: float) -> Path:
                      f"{s.body}")
     parts.append("</body></html>")
     path = out / "index.html"
-    path.write_text("\n".join(parts))
+    with written(path) as sink:
+        sink.write("\n".join(parts))
     return path
 
 

@@ -2,6 +2,7 @@
 run alone with its own step width, the trace pictures, and an animation of the whole scene."""
 from __future__ import annotations
 
+import io
 from pathlib import Path
 
 import numpy as np
@@ -10,6 +11,7 @@ from harness.cosim.system import System, load_system
 from harness.errors import HarnessError
 from harness.fmi.fmus import PROJECT_ROOT
 from harness.fmi.simulation import SimulationResult, simulate
+from harness.output import written
 from harness.scene.traces import draw_traces
 
 THESIS_SCENE_FILE = PROJECT_ROOT / "scenes" / "thesis_scene.json"
@@ -116,8 +118,11 @@ def animate_scene(system: System, results: dict[str, SimulationResult], path: Pa
                 draw.ellipse([cx - 5, cy - 5, cx + 5, cy + 5], fill=(60, 60, 60))
         draw.text((4, PANEL + 2), f"t = {t:5.2f} s", fill="black")
         images.append(frame.quantize(colors=32, method=Image.Quantize.MEDIANCUT, dither=Image.Dither.NONE))
-    images[0].save(path, save_all=True, append_images=images[1:], duration=round(1000 / frame_rate), loop=0,
-                   optimize=False)
+    buffer = io.BytesIO()
+    images[0].save(buffer, format="GIF", save_all=True, append_images=images[1:], duration=round(1000 / frame_rate),
+                   loop=0, optimize=False)
+    with written(Path(path), binary=True) as sink:
+        sink.write(buffer.getvalue())
     return path
 
 

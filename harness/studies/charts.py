@@ -10,6 +10,7 @@ import matplotlib.ticker
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 
+from harness.errors import HarnessError  # noqa: E402
 from harness.output import write_figure  # noqa: E402
 from harness.studies.work_precision import Point, pareto_front  # noqa: E402
 
@@ -143,10 +144,14 @@ def coupling_chart(points, out: Path) -> list[Path]:
     (The CSV also has the right-hand-side evaluations: with the scene's fixed internal step they
     change only with the passes a step takes, not with H.)"""
     configurations = list(dict.fromkeys(p.configuration for p in points))
+    if not any(math.isfinite(p.error) and p.error > 0 for p in points):
+        raise HarnessError(f"{out / 'coupling.csv'}: every run stopped before its end (no finite error to chart); "
+                           "see the CSV for where")
     figure, axes = plt.subplots(1, 3, figsize=(18, 5.5))
     colours = plt.get_cmap("tab10")
     for k, name in enumerate(configurations):
-        mine = sorted((p for p in points if p.configuration == name and math.isfinite(p.error)), key=lambda p: p.step)
+        mine = sorted((p for p in points if p.configuration == name and math.isfinite(p.error) and p.error > 0),
+                      key=lambda p: p.step)
         style = dict(marker="o", color=colours(k), label=name, linestyle="--" if "iterated" in name else "-")
         axes[0].plot([p.step for p in mine], [p.error for p in mine], **style)
         axes[1].plot([p.do_steps for p in mine], [p.error for p in mine], **style)

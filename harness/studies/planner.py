@@ -35,7 +35,6 @@ import numpy as np
 from harness.cosim.structure import Component, System
 from harness.errors import HarnessError
 from harness.fmi.fmu_instance import read_fmi2_description
-from harness.fmi.simulation import MAX_POINTS
 from harness.fmi.methods import ORDER
 from harness.objects.proof import object_file_in
 from harness.objects.thesis.equations import OUTER_MASS, Pendulum
@@ -178,6 +177,9 @@ def plan_object(job: tuple[Component, float, float, float, list, dict]) -> Objec
         runner.close()
 
 
+MAX_FRAMES = 1_000_000  # a plan checks every frame several times: about a minute at this bound
+
+
 def plan_scene(system: System, tolerance: float | None = None, duration: float | None = None,
                scheduler: str | None = None, workers: int | None = None) -> list[ObjectPlan]:
     tolerance = tolerance if tolerance is not None else system.tolerance()
@@ -192,8 +194,8 @@ def plan_scene(system: System, tolerance: float | None = None, duration: float |
     if not frame <= duration:
         raise HarnessError(f"{system.name}: a frame every {frame:g} s is longer than the {duration:g} s planned; "
                            "raise the camera's frame rate or the duration")
-    if duration / frame > MAX_POINTS:
-        raise HarnessError(f"{system.name}: {duration:g} s at a frame every {frame:g} s are more than {MAX_POINTS:g} "
+    if duration / frame > MAX_FRAMES:
+        raise HarnessError(f"{system.name}: {duration:g} s at a frame every {frame:g} s are more than {MAX_FRAMES:g} "
                            "frames; lower the camera's frame rate")
     if system.connections:
         return plan_coupled(system, tolerance, duration, frame, scheduler, workers)

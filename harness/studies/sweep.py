@@ -11,6 +11,7 @@ in one FMU run cannot take the caller down.
 """
 from __future__ import annotations
 
+import logging
 import os
 import signal
 import tempfile
@@ -70,13 +71,24 @@ def _terminate_workers(pool: ProcessPoolExecutor) -> None:
 
 def _dask_map(function, items, scheduler: str, workers: int | None):
     try:
+        import dask
         from distributed import Client, LocalCluster
     except ImportError:  # pragma: no cover - a dependency of the package
         raise HarnessError("a Dask scheduler needs the 'distributed' package") from None
     if scheduler == "local":
-        with LocalCluster(n_workers=workers or local_cores(), threads_per_worker=1, processes=True,
-                          dashboard_address=None) as cluster, Client(cluster) as client:
-            return client.gather(client.map(function, items, pure=False))
+        # its late clean-up of the scratch space this sweep already removed is not news
+        logging.getLogger("distributed.diskutils").setLevel(logging.CRITICAL)
+        with tempfile.TemporaryDirectory(prefix="dask-") as scratch:  # Dask's scratch space, removed with the sweep
+            # signals wait until the cluster exists, so that an interrupt closes it instead of leaving it half made
+            held = signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT, signal.SIGTERM})
+            try:
+                with dask.config.set({"temporary-directory": scratch}):
+                    cluster = LocalCluster(n_workers=workers or local_cores(), threads_per_worker=1, processes=True,
+                                           dashboard_address=None, local_directory=scratch)
+            finally:
+                signal.pthread_sigmask(signal.SIG_SETMASK, held)
+            with cluster, Client(cluster) as client, dask.config.set({"temporary-directory": scratch}):
+                return client.gather(client.map(function, items, pure=False))
     try:
         client = Client(scheduler, timeout="5s")
     except Exception as error:  # refused, timed out, or something that is not a Dask scheduler answered
