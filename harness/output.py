@@ -35,12 +35,7 @@ def output_file(text: str | Path, option: str, inputs: tuple[str | Path | None, 
         raise HarnessError(f"{option} {str(text)!r}: names no file")
     if formats is not None and path.suffix.lower() not in formats:
         raise HarnessError(f"{option} {path}: the file name must end in {', '.join(formats)}")
-    if path.is_symlink():
-        path = _resolved(path, option)
-    if path.is_dir():
-        raise HarnessError(f"{option} {path}: is a folder, not a file")
-    if path.exists() and not path.is_file():  # a device such as /dev/null would be replaced by the rename
-        raise HarnessError(f"{option} {path}: is not a regular file (a device, pipe or socket); choose a file")
+    path = _writable(path, option)
     target = _resolved(path, option)
     for given in inputs:
         if given is None or str(given) == "":
@@ -119,7 +114,7 @@ class _Sink:
 def written(path: Path, header: str | None = None, binary: bool = False) -> Iterator[_Sink]:
     """A text sink whose content replaces `path` when the block ends (see the module's note). When
     the block fails before anything but the header was written, `path` is left as it was."""
-    path = _writable(path)
+    path = _writable(path, "output")
     try:
         path.parent.mkdir(parents=True, exist_ok=True)
         # a short prefix: the temporary name must fit where the target's own name just fits
@@ -141,15 +136,16 @@ def written(path: Path, header: str | None = None, binary: bool = False) -> Iter
         _finish(sink, temporary)
 
 
-def _writable(path: Path) -> Path:
-    """The file a write replaces, also for names a command chooses itself inside an output folder: a
-    symbolic link is written through, a folder, device or pipe is refused (the rename would replace it)."""
+def _writable(path: Path, option: str) -> Path:
+    """The file a write replaces (checked again when writing starts, also for the names a command
+    chooses itself inside an output folder): a symbolic link is written through; a folder, device
+    or pipe is refused, since the rename would replace it (/dev/null, say)."""
     if path.is_symlink():
-        path = _resolved(path, "output")
+        path = _resolved(path, option)
     if path.is_dir():
-        raise HarnessError(f"{path}: is a folder, not a file; move it away or choose another output folder")
+        raise HarnessError(f"{option} {path}: is a folder, not a file")
     if path.exists() and not path.is_file():
-        raise HarnessError(f"{path}: is not a regular file (a device, pipe or socket); choose another output folder")
+        raise HarnessError(f"{option} {path}: is not a regular file (a device, pipe or socket); choose another")
     return path
 
 

@@ -122,10 +122,10 @@ TRANSFORMATIONS = ("LinearTransformation", "BooleanMappingTransformation", "Inte
                    "EnumerationMappingTransformation")
 
 
-def _refuse_transformations(ssd_bytes: bytes, what: str) -> None:
+def _refuse_transformations(root: ET.Element, what: str) -> None:
     """Connections that transform what they carry (read from the XML: fmpy's reader misses them in
     the namespace SSP 1.0 puts them in)."""
-    for connection in ET.fromstring(ssd_bytes).iter():
+    for connection in root.iter():
         if not connection.tag.endswith("}Connection"):
             continue
         for child in connection:
@@ -136,9 +136,8 @@ def _refuse_transformations(ssd_bytes: bytes, what: str) -> None:
                                    "which is not supported")
 
 
-def _experiment(ssd_bytes: bytes, what: str) -> float | None:
+def _experiment(root: ET.Element, what: str) -> float | None:
     """stopTime of the SSD's DefaultExperiment (fmpy's reader does not keep it)."""
-    root = ET.fromstring(ssd_bytes)
     for element in root:
         if element.tag.endswith("}DefaultExperiment") and element.get("stopTime") is not None:
             return _number(element.get("stopTime"), f"{what}: DefaultExperiment stopTime")
@@ -192,8 +191,9 @@ def load_ssp(path: Path) -> System:
         files = _ssd_files_from_folder(root, ssd_path)
     try:
         ssd = read_ssd(_in_memory_ssd(files))
-        stop = _experiment(files[SSD], what)
-        _refuse_transformations(files[SSD], what)
+        ssd_root = ET.fromstring(files[SSD])
+        stop = _experiment(ssd_root, what)
+        _refuse_transformations(ssd_root, what)
     except HarnessError:
         raise
     except Exception as error:  # lxml, schema and reader errors come as several types
