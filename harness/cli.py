@@ -72,7 +72,7 @@ def command_simulate(args: argparse.Namespace) -> int:
         raise KeyboardInterrupt
     if plot:
         from harness.scene.traces import draw_traces
-        pairs = [(x, y) for x, y in (("x", "y"), ("x1", "y1"), ("x2", "y2")) if x in result.columns]
+        pairs = plotted_points(locate_fmu(args.fmu), result.columns)
         if pairs:
             draw_traces([(result.fmu, result, pairs, (0.0, 0.0))], plot)
             print(f"wrote {plot}")
@@ -81,6 +81,16 @@ def command_simulate(args: argparse.Namespace) -> int:
               file=sys.stderr)
         return 1
     return 0
+
+
+def plotted_points(fmu: Path, columns: list[str]) -> list[tuple[str, str]]:
+    """The (x, y) output pairs of the moving points: every point of an object file, else the thesis
+    pendulums' bobs; only pairs whose both columns were recorded."""
+    from harness.objects.proof import object_file_in
+    spec = object_file_in(fmu)
+    candidates = ([(p.outputs["x"], p.outputs["y"]) for p in spec.points if {"x", "y"} <= set(p.outputs)]
+                  if spec is not None else [("x", "y"), ("x1", "y1"), ("x2", "y2")])
+    return [(x, y) for x, y in candidates if x in columns and y in columns]
 
 
 def command_derive(args: argparse.Namespace) -> int:

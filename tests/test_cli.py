@@ -106,3 +106,13 @@ def test_charts_take_each_object_once(fmu_paths, tmp_path):
         assert result.returncode == 0, result.stderr
         rows[len(objects)] = len((out / "stability.csv").read_text().splitlines())
     assert rows[1] == rows[2] > 10
+
+
+@pytest.mark.parametrize("name", ["CartPendulum", "SphericalPendulum", "DoublePendulum", "Spring"])
+def test_every_fmu_plots_its_moving_points(fmu_paths, tmp_path, name):
+    """The picture shows the points the object file names (CartPendulum's coordinate x is no point);
+    an FMU without points writes its CSV and no picture."""
+    result = harness("simulate", name, "--stop", "0.1", "--out", str(tmp_path / "p.csv"), "--plot",
+                     str(tmp_path / "p.png"))
+    assert result.returncode == 0, result.stderr
+    assert (tmp_path / "p.png").exists() == (name != "Spring")
