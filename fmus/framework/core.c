@@ -11,32 +11,62 @@
 
 /* ---------------------------------------------------------------- states and messages */
 
-const char *core_state_name(int state)
+/* FMI 2.0's names; a layer of another version sets its own (Instance.state_names). */
+static const char *const FMI2_STATE_NAMES[] = {"instantiated", "initializationMode", "stepComplete", "stepFailed",
+                                               "eventMode", "continuousTimeMode", "terminated", "error",
+                                               "intermediateUpdateMode"};
+
+const char *core_state_name(const Instance *inst, int state)
 {
-    switch (state) {
-    case MS_INSTANTIATED: return "instantiated";
-    case MS_INITIALIZATION: return "initializationMode";
-    case MS_STEP_COMPLETE: return "stepComplete";
-    case MS_STEP_FAILED: return "stepFailed";
-    case MS_EVENT: return "eventMode";
-    case MS_CONTINUOUS: return "continuousTimeMode";
-    case MS_TERMINATED: return "terminated";
-    case MS_ERROR: return "error";
-    default: return "unknown";
-    }
+    const char *const *names = inst && inst->state_names ? inst->state_names : FMI2_STATE_NAMES;
+    int bit;
+    for (bit = 0; (1 << bit) <= MS_LAST; bit++)
+        if (state == 1 << bit) return names[bit];
+    return "unknown";
 }
 
-void core_describe_states(unsigned mask, char *text, size_t size)
+void core_describe_states(const Instance *inst, unsigned mask, char *text, size_t size)
 {
     unsigned bit;
     text[0] = '\0';
-    for (bit = 1; bit <= MS_ERROR; bit <<= 1) {
+    for (bit = 1; bit <= MS_LAST; bit <<= 1) {
         if (mask & bit) {
             size_t used = strlen(text);
-            snprintf(text + used, size - used, "%s%s", used ? ", " : "", core_state_name((int)bit));
+            snprintf(text + used, size - used, "%s%s", used ? ", " : "", core_state_name(inst, (int)bit));
         }
     }
     if (!text[0]) snprintf(text, size, "none");
+}
+
+int core_call_allowed(Instance *inst, const char *function, unsigned cs, unsigned me)
+{
+    const unsigned mask = inst->type == INTERFACE_CO_SIMULATION ? cs : me;
+    char allowed[256];
+    if (mask & (unsigned)inst->s.machine_state) return 1;
+    core_describe_states(inst, mask, allowed, sizeof allowed);
+    log_error(inst, "%s: illegal call sequence: not allowed in state %s for %s (allowed in: %s)", function,
+              core_state_name(inst, inst->s.machine_state),
+              inst->type == INTERFACE_CO_SIMULATION ? "Co-Simulation" : "Model Exchange", allowed);
+    return 0;
+}
+
+Status core_set_logging(Instance *inst, const char *function, int on, size_t n, const char *const categories[])
+{
+    static const char *const known[] = {"logStatusError", "logStatusWarning", "logStatusDiscard", "logAll"};
+    size_t i, k;
+    if (!core_arrays_present(inst, function, n, categories, categories)) return STATUS_ERROR;
+    for (i = 0; i < n; i++) {
+        int found = 0;
+        for (k = 0; k < sizeof known / sizeof known[0]; k++)
+            if (categories[i] && strcmp(categories[i], known[k]) == 0) found = 1;
+        if (!found) {
+            log_error(inst, "%s: unknown log category %s (known: logStatusError, logStatusWarning, "
+                      "logStatusDiscard, logAll)", function, categories[i] ? categories[i] : "NULL");
+            return STATUS_ERROR;
+        }
+    }
+    inst->logging_on = on ? 1 : 0;
+    return STATUS_OK;
 }
 
 int core_arrays_present(Instance *inst, const char *function, size_t n, const void *a, const void *b)
@@ -279,9 +309,9 @@ static int value_acceptable(Instance *inst, const char *function, const Variable
     const unsigned allowed = settable_in(v);
     char states[256];
     if (!(allowed & (unsigned)inst->s.machine_state)) {
-        core_describe_states(allowed, states, sizeof states);
+        core_describe_states(inst, allowed, states, sizeof states);
         log_error(inst, "%s: variable %s (value reference %u) is %s and cannot be set in state %s (settable in: %s)",
-                  function, v->name, vr, kind_of(v), core_state_name(inst->s.machine_state), states);
+                  function, v->name, vr, kind_of(v), core_state_name(inst, inst->s.machine_state), states);
         return 0;
     }
     return value_in_range(inst, function, v, vr, value);
@@ -320,6 +350,15 @@ static int integer_reference_known(Instance *inst, const char *function, unsigne
     else
         log_error(inst, "%s: unknown value reference %u (this FMU has no Integer variables)", function, vr);
     return 0;
+}
+
+const VariableInfo *core_variable(unsigned int vr)
+{
+    if (vr < N_REAL) return &REAL_VARIABLES[vr];
+#if N_INTEGER > 0
+    if (vr >= INTEGER_VR_BASE && vr < INTEGER_VR_BASE + N_INTEGER) return &INTEGER_VARIABLES[vr - INTEGER_VR_BASE];
+#endif
+    return NULL;
 }
 
 Status core_get_real(Instance *inst, const char *function, const unsigned int vr[], size_t nvr, double value[])
@@ -492,7 +531,7 @@ Status core_get_state(Instance *inst, const char *function, void **FMUstate)
 static int machine_state_fits(const Instance *inst, int32_t state)
 {
     const unsigned valid = inst->type == INTERFACE_CO_SIMULATION ? CS_ANY : ME_ANY;
-    return state != 0 && (state & (state - 1)) == 0 && ((unsigned)state & valid);
+    return state != 0 && (state & (state - 1)) == 0 && ((unsigned)state & valid) && state != MS_INTERMEDIATE;
 }
 
 /* A deserialized state passes the setters' checks: every value a user can set (parameters, inputs,

@@ -77,25 +77,12 @@ static const struct {
     [FN_GET_STRING_STATUS] = {"fmi2GetStringStatus", MS_STEP_COMPLETE | MS_STEP_FAILED | MS_TERMINATED, 0},
 };
 
-/* Checks the call against the state machine; logs and returns 0 when it is illegal. */
-static int call_allowed(Instance *inst, Function fn)
-{
-    const unsigned mask = inst->type == INTERFACE_CO_SIMULATION ? CALL_RULES[fn].cs : CALL_RULES[fn].me;
-    char allowed[256];
-    if (mask & (unsigned)inst->s.machine_state) return 1;
-    core_describe_states(mask, allowed, sizeof allowed);
-    log_error(inst, "%s: illegal call sequence: not allowed in state %s for %s (allowed in: %s)", CALL_RULES[fn].name,
-              core_state_name(inst->s.machine_state),
-              inst->type == INTERFACE_CO_SIMULATION ? "Co-Simulation" : "Model Exchange", allowed);
-    return 0;
-}
-
 /* The instance behind c, checked against the state machine: NULL means return fmi2Error. */
 static Instance *enter(fmi2Component c, Function fn)
 {
     Instance *inst = (Instance *)c;
     if (!inst) return NULL;
-    return call_allowed(inst, fn) ? inst : NULL;
+    return core_call_allowed(inst, CALL_RULES[fn].name, CALL_RULES[fn].cs, CALL_RULES[fn].me) ? inst : NULL;
 }
 
 #define NAME(fn) CALL_RULES[fn].name
@@ -149,23 +136,7 @@ void fmi2FreeInstance(fmi2Component c) { core_free((Instance *)c); }
 fmi2Status fmi2SetDebugLogging(fmi2Component c, fmi2Boolean loggingOn, size_t nCategories,
                                const fmi2String categories[])
 {
-    static const char *const known[] = {"logStatusError", "logStatusWarning", "logStatusDiscard", "logAll"};
-    Instance *inst = enter(c, FN_SET_DEBUG_LOGGING);
-    size_t i, k;
-    if (!inst) return fmi2Error;
-    if (!core_arrays_present(inst, "fmi2SetDebugLogging", nCategories, categories, categories)) return fmi2Error;
-    for (i = 0; i < nCategories; i++) {
-        int found = 0;
-        for (k = 0; k < sizeof known / sizeof known[0]; k++)
-            if (categories[i] && strcmp(categories[i], known[k]) == 0) found = 1;
-        if (!found) {
-            log_error(inst, "fmi2SetDebugLogging: unknown log category %s (known: logStatusError, logStatusWarning, "
-                      "logStatusDiscard, logAll)", categories[i] ? categories[i] : "NULL");
-            return fmi2Error;
-        }
-    }
-    inst->logging_on = loggingOn ? 1 : 0;
-    return fmi2OK;
+    CALL(FN_SET_DEBUG_LOGGING, core_set_logging(inst, NAME(FN_SET_DEBUG_LOGGING), loggingOn, nCategories, categories));
 }
 
 fmi2Status fmi2SetupExperiment(fmi2Component c, fmi2Boolean toleranceDefined, fmi2Real tolerance,

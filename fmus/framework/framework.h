@@ -60,10 +60,13 @@ enum {
     MS_EVENT = 1 << 4,
     MS_CONTINUOUS = 1 << 5,
     MS_TERMINATED = 1 << 6,
-    MS_ERROR = 1 << 7
+    MS_ERROR = 1 << 7,
+    MS_INTERMEDIATE = 1 << 8 /* FMI 3.0: inside the importer's intermediate-update callback */
 };
+#define MS_LAST MS_INTERMEDIATE
 /* The states an instance of each interface can be in. */
-#define CS_ANY (MS_INSTANTIATED | MS_INITIALIZATION | MS_STEP_COMPLETE | MS_STEP_FAILED | MS_TERMINATED | MS_ERROR)
+#define CS_ANY (MS_INSTANTIATED | MS_INITIALIZATION | MS_STEP_COMPLETE | MS_STEP_FAILED | MS_TERMINATED | MS_ERROR | \
+                MS_INTERMEDIATE)
 #define ME_ANY (MS_INSTANTIATED | MS_INITIALIZATION | MS_EVENT | MS_CONTINUOUS | MS_TERMINATED | MS_ERROR)
 
 /* Integrator memory that must survive between fmi2DoStep calls. */
@@ -102,6 +105,11 @@ struct Instance {
     MessageSink emit;
     void (*api_logger)(void); /* the importer's logger, cast back to its type by the API layer */
     void *environment;        /* the importer's pointer handed back with every message */
+    /* Called at every accepted internal step of a communication step, with the state of that step
+     * in place and the machine state MS_INTERMEDIATE; NULL when the importer asked for no reports. */
+    void (*report_step)(Instance *inst, double t);
+    void (*api_intermediate)(void); /* the importer's callback behind report_step, cast back by the layer */
+    const char *const *state_names; /* the layer's names of the MS_ states, by bit position */
     void *(*allocate)(size_t count, size_t size);
     void (*release)(void *memory);
     int logging_on;
@@ -124,7 +132,7 @@ INTERNAL Status step_to(Instance *inst, const char *function, double t, double H
 INTERNAL void restart_integrator(Instance *inst);
 #if N_STATES > 0
 /* States x (of the Instance context) are finite and regular, with finite derivatives and outputs. */
-INTERNAL int state_acceptable(const void *context, double t, const double *x);
+INTERNAL int state_acceptable(void *context, double t, const double *x);
 #endif
 
 /* ---- core.c: what every API function does once its call is allowed in the current state. Each takes
@@ -133,10 +141,16 @@ INTERNAL Instance *core_instantiate(const char *function, Interface type, const 
                                     MessageSink emit, void (*api_logger)(void), void *environment,
                                     void *(*allocate)(size_t, size_t), void (*release)(void *), int logging_on);
 INTERNAL void core_free(Instance *inst);
+/* Whether the call may come in the instance's machine state (masks of MS_ bits per interface);
+ * logs an illegal call sequence otherwise. */
+INTERNAL int core_call_allowed(Instance *inst, const char *function, unsigned cs, unsigned me);
+INTERNAL Status core_set_logging(Instance *inst, const char *function, int on, size_t n, const char *const categories[]);
 INTERNAL void core_reset(Instance *inst);
 INTERNAL Status core_setup(Instance *inst, const char *function, double start, int stop_defined, double stop);
 INTERNAL Status core_exit_initialization(Instance *inst, const char *function);
 INTERNAL int core_arrays_present(Instance *inst, const char *function, size_t n, const void *a, const void *b);
+/* The variable with value reference vr (Real or Integer), NULL for none. */
+INTERNAL const VariableInfo *core_variable(unsigned int vr);
 INTERNAL Status core_get_real(Instance *inst, const char *function, const unsigned int vr[], size_t n, double value[]);
 INTERNAL Status core_set_real(Instance *inst, const char *function, const unsigned int vr[], size_t n,
                               const double value[]);
@@ -169,8 +183,8 @@ INTERNAL Status core_set_input_derivatives(Instance *inst, const char *function,
 INTERNAL Status core_get_output_derivatives(Instance *inst, const char *function, const unsigned int vr[], size_t n,
                                             const int32_t orders[], double value[]);
 INTERNAL Status core_do_step(Instance *inst, const char *function, double t, double H);
-INTERNAL const char *core_state_name(int state);
-INTERNAL void core_describe_states(unsigned mask, char *text, size_t size);
+INTERNAL const char *core_state_name(const Instance *inst, int state);
+INTERNAL void core_describe_states(const Instance *inst, unsigned mask, char *text, size_t size);
 
 /* ---- implemented by each model: physics.h defines ModelConst and, for a model with states,
  * static inline void model_equations(const ModelConst *c, double t, const double *x,

@@ -46,8 +46,8 @@ typedef struct {
     uint64_t budget; /* rkf45 stops before a step that would take evaluations past this */
     /* Whether a state is good enough to continue from (finite, not singular, finite outputs);
      * called only in checking passes, never in the hot loop. */
-    int (*acceptable)(const void *context, double t, const double *x);
-    const void *context;
+    int (*acceptable)(void *context, double t, const double *x);
+    void *context;
 } RightHandSide;
 
 /* Fixed-step integration with solver (a SOLVER_* value that is not rkf45): n substeps of hs from

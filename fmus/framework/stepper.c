@@ -70,10 +70,33 @@ static int evaluate_at(const Instance *inst, double t, const double *x, double *
     return model_outputs(&inst->constants, t, real + N_STATES, real) && first_non_finite(real, N_REAL) < 0;
 }
 
-int state_acceptable(const void *context, double t, const double *x)
+/* The importer's look at an accepted internal step: the instance shows the step's time, states and
+ * outputs while report_step runs, and its own state afterwards. */
+static void report_internal_step(Instance *inst, double t, const double *real)
 {
+    double before[N_REAL];
+    const double time = inst->s.time;
+    const int32_t machine_state = inst->s.machine_state;
+    const int outputs_valid = inst->outputs_valid;
+    memcpy(before, inst->s.real, sizeof before);
+    memcpy(inst->s.real, real, sizeof before);
+    inst->s.time = t;
+    inst->outputs_valid = 1;
+    inst->s.machine_state = MS_INTERMEDIATE;
+    inst->report_step(inst, t);
+    memcpy(inst->s.real, before, sizeof before);
+    inst->s.time = time;
+    inst->s.machine_state = machine_state;
+    inst->outputs_valid = outputs_valid;
+}
+
+int state_acceptable(void *context, double t, const double *x)
+{
+    Instance *inst = (Instance *)context;
     double real[N_REAL];
-    return evaluate_at((const Instance *)context, t, x, real);
+    if (!evaluate_at(inst, t, x, real)) return 0;
+    if (inst->report_step && inst->s.machine_state == MS_STEP_COMPLETE) report_internal_step(inst, t, real);
+    return 1;
 }
 
 /* Ends a successful step. When the inputs did not vary, the outputs the end-of-step check computed
@@ -104,6 +127,9 @@ Status step_to(Instance *inst, const char *function, double t, double H)
     const int solver = s->integer[INT_solver];
     const double h = s->real[VR_h];
     const char *method = solver_name(solver);
+    /* Reporting internal steps checks each of them as it is taken, so that no report shows a state
+     * that a failed step would take back. */
+    const int reporting = inst->report_step != NULL;
     double *x = s->real; /* the states lead the Real variables */
     RightHandSide f;
     double checked[N_REAL];
@@ -143,8 +169,13 @@ Status step_to(Instance *inst, const char *function, double t, double H)
         IntegratorMemory memory_start = *memory;
         double reached;
         memcpy(x_start, x, sizeof x_start);
-        reached = integrate_adaptive(&f, memory, x, t, t_end, h, s->real[VR_tol], 0);
-        if (!evaluate_at(inst, reached, x, checked)) { /* outputs overflowed although the state stayed finite: redo, checking */
+        reached = integrate_adaptive(&f, memory, x, t, t_end, h, s->real[VR_tol], reporting);
+        if (reporting) {
+            if (reached == t_end && evaluate_at(inst, reached, x, checked)) {
+                memory->n_rhs += f.evaluations;
+                return finish_with(inst, t, H, checked, f.inputs_vary);
+            }
+        } else if (!evaluate_at(inst, reached, x, checked)) { /* outputs overflowed although the state stayed finite: redo, checking */
             memcpy(x, x_start, sizeof x_start);
             *memory = memory_start;
             f.budget += f.evaluations; /* the checking pass gets a budget of its own */
@@ -191,10 +222,15 @@ Status step_to(Instance *inst, const char *function, double t, double H)
         memory->ab_step = hs;
         memcpy(x_start, x, sizeof x_start);
         memory_start = *memory;
-        integrate_fixed(&f, solver, memory, x, t, hs, n, 0);
-        if (evaluate_at(inst, t + H, x, checked)) {
+        done = integrate_fixed(&f, solver, memory, x, t, hs, n, reporting);
+        if (done == n && evaluate_at(inst, t + H, x, checked)) {
             memory->n_rhs += f.evaluations;
             return finish_with(inst, t, H, checked, f.inputs_vary);
+        }
+        if (reporting) { /* the pass checked every substep already: x is the last good one */
+            memory->n_rhs += f.evaluations;
+            memory->ab_count = 0;
+            return fail(inst, function, t, t + (double)done * hs, method, h);
         }
         /* Redo with a check after every substep to find the last good one. */
         memcpy(x, x_start, sizeof x_start);

@@ -1,5 +1,5 @@
-"""An object file to the files the build compiles: physics.h, physics.c, modelDescription.xml and
-the equations section of the documentation.
+"""An object file to the files the build compiles: physics.h, physics.c, modelDescription.xml (FMI
+2.0), fmi3/modelDescription.xml (FMI 3.0) and the equations section of the documentation.
 
     python -m harness.objects.generate OBJECT.toml --out DIR    writes DIR/<identifier>/...
 """
@@ -14,6 +14,7 @@ from harness.objects.c_code import generate_c
 from harness.objects.derivation import Derivation, derive
 from harness.objects.documentation import equations_html
 from harness.objects.model_description import model_description
+from harness.objects.model_description_fmi3 import dependencies, from_fmi2
 from harness.objects.object_file import ObjectFileError, read_object_file
 
 
@@ -40,6 +41,8 @@ def generate(object_file: str | Path, out: str | Path) -> GeneratedObject:
     _write(folder / "physics.h", code.header)
     _write(folder / "physics.c", code.source)
     _write(folder / "modelDescription.xml", xml)
+    (folder / "fmi3").mkdir(exist_ok=True)
+    _write(folder / "fmi3" / "modelDescription.xml", from_fmi2(xml, dependencies(derivation)))
     _write(folder / "equations.html", equations_html(derivation))
     return GeneratedObject(spec.identifier, folder, derivation)
 

@@ -1,8 +1,11 @@
-"""The FMI 3.0 model description of an object, from the same variable list as the FMI 2.0 one.
+"""The FMI 3.0 model description of an FMU: a translation of its FMI 2.0 description.
 
-Value references are those of FMI 2.0 (the C tables serve both versions): the Float64 variables
-dense from 0 in the FMI 2.0 order, then the enumerations and the counters, then the independent
-variable `time`, which FMI 3.0 declares and FMI 2.0 does not. The counters are UInt64.
+Both versions' binaries are compiled from the same C tables, so the FMI 3.0 description is the
+FMI 2.0 one in FMI 3.0's terms: the same variables, value references, units, ranges and
+instantiation token (the FMI 2.0 GUID), Float64 for Real, UInt64 for the Integer outputs (the
+counters), Enumeration for enumerations, and the independent variable `time`, which FMI 3.0 declares
+and FMI 2.0 does not, at the next free value reference. An object adds the dependencies below; a
+hand-written model (the Spring) lists none, which the standard reads as "depends on every known".
 
 ModelStructure gives the dependencies of every output and state derivative on the knowns (the
 continuous states, the inputs and time), from the free symbols of the derivation's expressions;
@@ -12,22 +15,20 @@ dependency list (they depend on every known, as the standard says of an absent l
 """
 from __future__ import annotations
 
+import argparse
+import sys
+import xml.etree.ElementTree as ET
+from pathlib import Path
 from xml.sax.saxutils import quoteattr
 
 import sympy as sp
 
 from harness.objects.derivation import Derivation
-from harness.objects.model_description import (TOKEN, TRAILER_LINES, Variable, common_attributes, enumerations,
-                                               item_line, range_attributes, stamped, unit_lines, unit_table,
-                                               variables)
+from harness.objects.model_description import model_description
 
-
-def value_references(variable_list: list[Variable]) -> dict[str, int]:
-    """Name -> value reference, as in the FMI 2.0 description (Reals first), then time."""
-    ordered = [v for v in variable_list if v.type == "Real"] + [v for v in variable_list if v.type != "Real"]
-    references = {v.name: k for k, v in enumerate(ordered)}
-    references["time"] = len(ordered)
-    return references
+# The FMI 2.0 <ScalarVariable> attributes FMI 3.0 keeps as they are, in this order.
+_KEPT = ("name", "valueReference", "causality", "variability", "initial", "description")
+_TYPED = ("declaredType", "unit", "start", "min", "max")
 
 
 def dependencies(derivation: Derivation) -> dict[str, set[str]]:
@@ -86,56 +87,101 @@ def _coupled_blocks(M: sp.Matrix) -> list[list[int]]:
 
 
 def model_description_fmi3(derivation: Derivation) -> str:
-    variable_list = variables(derivation)
-    return stamped(_document(derivation, variable_list, unit_table(derivation.spec, variable_list), TOKEN))
+    return from_fmi2(model_description(derivation), dependencies(derivation))
 
 
-def _document(derivation: Derivation, variable_list: list[Variable], units, token: str) -> str:
-    spec = derivation.spec
-    references = value_references(variable_list)
+def from_fmi2(fmi2_text: str, needs: dict[str, set[str]] | None = None) -> str:
+    """The FMI 3.0 description of the FMU that `fmi2_text` describes; `needs` gives, by name, the
+    knowns each output and state derivative depends on (None: not listed)."""
+    root = ET.fromstring(fmi2_text)
+    cs, me = root.find("CoSimulation"), root.find("ModelExchange")
+    identifier = (cs if cs is not None else me).get("modelIdentifier")
+    scalars = root.find("ModelVariables").findall("ScalarVariable")
+    references = {v.get("name"): int(v.get("valueReference")) for v in scalars}
+    time_reference = max(references.values()) + 1
+    references["time"] = time_reference
+    by_index = {k: v for k, v in enumerate(scalars, start=1)}
     lines = [
         '<?xml version="1.0" encoding="UTF-8"?>',
-        f'<fmiModelDescription fmiVersion="3.0" modelName="{spec.identifier}"',
-        f'  instantiationToken="{token}"',
-        f'  description={quoteattr(spec.description)}',
-        '  generationTool="pendulum-fmus harness.objects" variableNamingConvention="structured">',
-        f'  <ModelExchange modelIdentifier="{spec.identifier}" canGetAndSetFMUState="true" '
+        f'<fmiModelDescription fmiVersion="3.0" modelName={quoteattr(root.get("modelName"))}',
+        f'  instantiationToken={quoteattr(root.get("guid"))}',
+        f'  description={quoteattr(root.get("description", ""))}',
+        f'  generationTool={quoteattr(root.get("generationTool", ""))} variableNamingConvention="structured">',
+        f'  <ModelExchange modelIdentifier="{identifier}" canGetAndSetFMUState="true" '
         'canSerializeFMUState="true" needsCompletedIntegratorStep="false"/>',
-        f'  <CoSimulation modelIdentifier="{spec.identifier}" canGetAndSetFMUState="true" canSerializeFMUState="true"',
-        '    canHandleVariableCommunicationStepSize="true" maxOutputDerivativeOrder="1"/>',
-        '  <UnitDefinitions>', *unit_lines(units), '  </UnitDefinitions>', '  <TypeDefinitions>']
-    for type_name, items in enumerations(derivation):
-        lines += [f'    <EnumerationType name="{type_name}">', *(item_line("      ", item) for item in items),
-                  '    </EnumerationType>']
-    lines += ['  </TypeDefinitions>', *TRAILER_LINES, '  <ModelVariables>',
-              f'    <Float64 name="time" valueReference="{references["time"]}" causality="independent" '
+        f'  <CoSimulation modelIdentifier="{identifier}" canGetAndSetFMUState="true" canSerializeFMUState="true"',
+        '    canHandleVariableCommunicationStepSize="true" maxOutputDerivativeOrder="1" providesIntermediateUpdate="true"/>']
+    lines += _copied(root.find("UnitDefinitions"))
+    types = root.find("TypeDefinitions")
+    if types is not None and len(types):
+        lines.append('  <TypeDefinitions>')
+        for simple in types:
+            lines.append(f'    <EnumerationType name={quoteattr(simple.get("name"))}>')
+            for item in simple.find("Enumeration"):
+                lines.append("      <Item" + _attributes(item, ("name", "value", "description")) + "/>")
+            lines.append('    </EnumerationType>')
+        lines.append('  </TypeDefinitions>')
+    for section in ("LogCategories", "DefaultExperiment"):
+        lines += _copied(root.find(section))
+    lines += ['  <ModelVariables>',
+              f'    <Float64 name="time" valueReference="{time_reference}" causality="independent" '
               'variability="continuous" unit="s" description="simulation time"/>']
-    ordered = sorted(variable_list, key=lambda v: references[v.name])
-    for v in ordered:
-        attributes = common_attributes(v, references[v.name])
-        if v.type == "Enumeration":
-            lines.append(f'    <Enumeration {attributes} declaredType="{v.declared_type}" start="{v.start}"/>')
-        elif v.type == "Integer":
-            lines.append(f"    <UInt64 {attributes}/>")
+    for v in sorted(scalars, key=lambda v: int(v.get("valueReference"))):
+        typed = v[0]
+        attributes = _attributes(v, _KEPT) + _attributes(typed, _TYPED)
+        if typed.tag == "Real":
+            if typed.get("derivative"):
+                state = by_index[int(typed.get("derivative"))]
+                attributes += f' derivative="{state.get("valueReference")}"'
+            if v.get("causality") == "output":
+                attributes += ' intermediateUpdate="true"'
+            lines.append(f"    <Float64{attributes}/>")
+        elif typed.tag == "Enumeration":
+            lines.append(f"    <Enumeration{attributes}/>")
+        elif v.get("causality") == "output":  # the Integer outputs count: never negative, may pass 2^31
+            lines.append(f"    <UInt64{attributes}/>")
         else:
-            if v.unit:
-                attributes += f" unit={quoteattr(v.unit)}"
-            attributes += range_attributes(v)
-            if v.derivative:
-                state = ordered[v.derivative - 1]
-                attributes += f' derivative="{references[state.name]}"'
-            lines.append(f"    <Float64 {attributes}/>")
-    needs = dependencies(derivation)
-
-    def unknown(element: str, v: Variable, with_dependencies: bool = True) -> str:
-        listed = ""
-        if with_dependencies:
-            listed = ' dependencies="' + " ".join(str(r) for r in sorted(references[n] for n in needs[v.name])) + '"'
-        return f'    <{element} valueReference="{references[v.name]}"{listed}/>'
+            lines.append(f"    <Int32{attributes}/>")
     lines += ['  </ModelVariables>', '  <ModelStructure>']
-    lines += [unknown("Output", v) for v in ordered if v.causality == "output"]
-    lines += [unknown("ContinuousStateDerivative", v) for v in ordered if v.derivative]
-    lines += [unknown("InitialUnknown", v, False) for v in ordered
-              if v.derivative or (v.causality == "output" and v.initial == "calculated")]
+    structure = root.find("ModelStructure")
+
+    def unknowns(section: str, element: str, with_dependencies: bool = True) -> list[str]:
+        found = []
+        listing = structure.find(section)
+        for unknown in listing if listing is not None else []:
+            v = by_index[int(unknown.get("index"))]
+            listed = ""
+            if with_dependencies and needs is not None:
+                listed = ' dependencies="' + " ".join(str(r) for r in sorted(references[n] for n in needs[v.get("name")])) + '"'
+            found.append(f'    <{element} valueReference="{v.get("valueReference")}"{listed}/>')
+        return found
+    lines += unknowns("Outputs", "Output") + unknowns("Derivatives", "ContinuousStateDerivative")
+    lines += unknowns("InitialUnknowns", "InitialUnknown", False)
     lines += ['  </ModelStructure>', '</fmiModelDescription>', '']
     return "\n".join(lines)
+
+
+def _attributes(element: ET.Element, names: tuple[str, ...]) -> str:
+    return "".join(f" {name}={quoteattr(element.get(name))}" for name in names if element.get(name) is not None)
+
+
+def _copied(element: ET.Element | None) -> list[str]:
+    """A section both versions write alike, as it stands."""
+    if element is None:
+        return []
+    ET.indent(element, space="  ", level=1)
+    return ["  " + ET.tostring(element, encoding="unicode").rstrip()]
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description="Write the FMI 3.0 description of an FMU from its FMI 2.0 one.")
+    parser.add_argument("fmi2", type=Path)
+    parser.add_argument("--out", required=True, type=Path)
+    args = parser.parse_args(argv)
+    args.out.parent.mkdir(parents=True, exist_ok=True)
+    args.out.write_text(from_fmi2(args.fmi2.read_text()))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
