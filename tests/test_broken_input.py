@@ -289,3 +289,37 @@ def test_a_second_interrupt_does_not_cut_the_clean_up_short(fmu_paths, tmp_path)
         process.send_signal(signal.SIGTERM)
     ended_cleanly(process, scratch)
     assert len(out.read_text().splitlines()) > 10
+
+
+@pytest.mark.parametrize("case", ["start", "unit", "implementation"])
+def test_ssd_features_the_master_does_not_carry_out_are_refused(fmu_paths, tmp_path, case):
+    """A start time other than 0, a value in another unit than its variable's, a component asking
+    for Model Exchange: one line naming it, never a run that ignores it."""
+    folder = ssp_copy(tmp_path)
+    ssd = folder / "SystemStructure.ssd"
+    text = ssd.read_text()
+    edits = {"start": ('startTime="0" stopTime="10.0"', 'startTime="5" stopTime="5.05"'),
+             "unit": ('<ssv:Parameter name="l0"><ssv:Real value="1.5"/>',
+                      '<ssv:Parameter name="l0"><ssv:Real value="1500" unit="mm"/>'),
+             "implementation": ('<ssd:Component name="left" ', '<ssd:Component name="left" implementation="ModelExchange" ')}
+    old, new = edits[case]
+    assert old in text
+    ssd.write_text(text.replace(old, new))
+    words = {"start": "startTime = 5", "unit": "parameter 'l0' is given in 'mm'",
+             "implementation": "'ModelExchange'"}[case]
+    one_line_error(harness("run", str(folder), "--stop", "1", "--step", "0.1", "--out", str(tmp_path / "x.csv")), words)
+    assert not (tmp_path / "x.csv").exists()
+
+
+def test_an_ssv_enumeration_names_its_item(fmu_paths, tmp_path):
+    """SSP gives an enumeration's value as its item's name: euler runs as euler (its work counts show it)."""
+    folder = ssp_copy(tmp_path)
+    ssd = folder / "SystemStructure.ssd"
+    text = ssd.read_text()
+    ssd.write_text(text.replace('<ssv:Parameter name="solver"><ssv:Integer value="5"/>',
+                                '<ssv:Parameter name="solver"><ssv:Enumeration value="euler"/>'))
+    result = harness("run", str(folder), "--stop", "0.1", "--step", "0.1", "--out", str(tmp_path / "x.csv"))
+    assert result.returncode == 0, result.stderr
+    header, *rows = (tmp_path / "x.csv").read_text().splitlines()
+    column = header.split(",").index("left.n_rhs")
+    assert float(rows[-1].split(",")[column]) == 100  # euler: one evaluation per substep of h = 0.001

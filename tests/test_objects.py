@@ -3,6 +3,8 @@ numeric route, and `harness derive` end to end. Nothing here is specific to one 
 object file in the registry is checked the same way."""
 from __future__ import annotations
 
+import math
+
 import subprocess
 import sys
 import tempfile
@@ -15,7 +17,7 @@ from harness.objects.derivation import derive
 from harness.objects.build import derive_fmu
 from harness.objects.proof import numeric_route_agreement, object_file_in, observed_order, prove
 from harness.objects.object_file import ObjectFileError, read_object_file
-from harness.objects.registry import object_files, object_names
+from harness.objects.registry import object_file, object_files, object_names
 
 CART_PENDULUM = '''
 identifier = "CartPendulumTest"
@@ -125,4 +127,41 @@ def test_the_order_check_tells_a_wrong_order_from_a_right_one():
     assert not observed_order(steps, fourth, 5, at_least=False)[0]
     assert not observed_order(steps, fourth, 3, at_least=False)[0]
     assert observed_order(steps, fourth, 3, at_least=True)[0]   # energy may fall faster than the order
-    assert not observed_order(steps, [1e-14] * 6, 4, at_least=False)[0]  # rounding only proves nothing
+    exact = observed_order(steps, [1e-14] * 6, 4, at_least=False)  # exact to rounding: nothing wrong
+    assert exact[0] and "exact to rounding" in exact[1]
+    assert not observed_order(steps, [1e-14, math.nan, 1e-14, 1e-14, 1e-14, 1e-14], 4, at_least=False)[0]
+    assert not observed_order(steps, [0.5, 1e-13, 1e-14, 1e-14, 1e-14, 1e-14], 4, at_least=False)[0]
+    slow = [0.05 * s ** 5.61 for s in steps]  # a pre-asymptotic energy slope just under the order
+    assert observed_order(steps, slow, 6, at_least=True)[0]
+    assert not observed_order(steps, [0.05 * s ** 5.0 for s in steps], 6, at_least=True)[0]
+
+
+def test_a_kink_in_a_point_expression_generates_c():
+    """Abs in a point: the output derivatives differentiate it twice, and the impulse that gives
+    (DiracDelta, zero wherever the expression is defined) is written as 0.0, not refused by the printer."""
+    import sympy as sp
+
+    from harness.objects.c_code import c_expr, generate_c
+    text = object_file("SimplePendulum").read_text()
+    text = text.replace('x = "anchor_x + L*sin(phi)"', 'x = "anchor_x + Abs(L*sin(phi))"')
+    assert "Abs(" in text
+    code = generate_c(derive(read_object_file("kinked.toml", text)))
+    assert "DiracDelta" not in code.source and "fabs(" in code.source
+    assert c_expr(sp.DiracDelta(sp.Symbol("x"))) == "0.0"
+
+
+def test_a_derived_slow_pendulum_proves_itself_and_plans_from_its_own_file(tmp_path):
+    """The project's pendulum with one number changed (L = 10 m) under a new name: every check of the
+    proof passes (methods exact to rounding at this pace pass, pre-asymptotic energy slopes within
+    0.5 of the order pass), and the planner linearizes the energies the FMU carries: omega^2 = g/L."""
+    from harness.cosim.structure import Component
+    from harness.studies.planner import object_eigenvalues
+    text = object_file("SimplePendulum").read_text().replace('identifier = "SimplePendulum"',
+                                                             'identifier = "LongPendulum"')
+    text = text.replace('L = { start = 1.0,', 'L = { start = 10.0,')
+    fmu = derive_fmu(write(tmp_path, text, "LongPendulum.toml"), tmp_path / "out").path
+    failed = [f"{p.name}: {p.detail}" for p in prove(fmu, object_file_in(fmu)) if not p.passed]
+    assert not failed, failed
+    eigenvalues = object_eigenvalues("LongPendulum", Component("p", fmu))
+    assert eigenvalues is not None
+    assert max(abs(lam) for lam in eigenvalues) == pytest.approx(math.sqrt(9.81 / 10.0), rel=1e-9)

@@ -43,19 +43,20 @@ typedef struct {
     int inputs_vary;
     int forces; /* some input is not zero or varies: the model computes its force terms */
     uint64_t evaluations;
-    uint64_t budget; /* rkf45 stops before a step that would take evaluations past this */
+    uint64_t checks; /* calls of acceptable: each evaluates the right-hand side and the outputs once */
+    uint64_t budget; /* rkf45 stops before a step that would take evaluations plus checks past this */
     /* Whether a state is good enough to continue from (finite, not singular, finite outputs);
      * called only in checking passes, never in the hot loop. */
     int (*acceptable)(void *context, double t, const double *x);
     void *context;
 } RightHandSide;
 
-/* Fixed-step integration with solver (a SOLVER_* value that is not rkf45): n substeps of hs from
- * t0, substep i starting at t0 + i hs. With check_each, stops before the first substep whose
- * result is not acceptable and leaves x, memory at the last good substep. Returns the number of
- * substeps completed. */
+/* Fixed-step integration with solver (a SOLVER_* value that is not rkf45): substeps first ...
+ * first + n - 1 of hs from t0, substep i starting at t0 + i hs. With check_each, stops before the
+ * first substep whose result is not acceptable and leaves x, memory at the last good substep.
+ * Returns the number of substeps completed. */
 INTERNAL int64_t integrate_fixed(RightHandSide *f, int solver, IntegratorMemory *memory, double *x, double t0, double hs,
-                        int64_t n, int check_each);
+                        int64_t first, int64_t n, int check_each);
 
 /* Fehlberg 4(5) with step-size control from t0 to t_end; starts from memory->rkf_proposal (or
  * h_initial) and leaves its next proposal there. A step whose result fails model_state_ok (or, with

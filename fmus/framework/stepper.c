@@ -7,6 +7,10 @@
 
 #include "integrators.h"
 
+/* Substeps between two checks of the state in a fixed-step pass: a failure costs at most this many
+ * substeps redone, and the checks cost one evaluation per block. */
+#define CHECK_BLOCK 64
+
 
 /* Forgets the Adams-Bashforth history and the rkf45 step proposal: after a reset, or when solver,
  * h or tol change. */
@@ -147,7 +151,8 @@ Status step_to(Instance *inst, const char *function, double t, double H)
     if (f.inputs_vary) f.forces = 1;
     f.t0 = t;
     f.evaluations = 0;
-    f.budget = (uint64_t)MAX_EVALUATIONS_PER_CALL;
+    f.checks = 0;
+    f.budget = (uint64_t)MAX_EVALUATIONS_PER_CALL - 1; /* one check of the end state stays in the budget */
     f.acceptable = state_acceptable;
     f.context = inst;
 
@@ -170,6 +175,7 @@ Status step_to(Instance *inst, const char *function, double t, double H)
         double reached;
         memcpy(x_start, x, sizeof x_start);
         reached = integrate_adaptive(&f, memory, x, t, t_end, h, s->real[VR_tol], reporting);
+        f.checks++;
         if (reporting) {
             if (reached == t_end && evaluate_at(inst, reached, x, checked)) {
                 memory->n_rhs += f.evaluations;
@@ -178,7 +184,7 @@ Status step_to(Instance *inst, const char *function, double t, double H)
         } else if (!evaluate_at(inst, reached, x, checked)) { /* outputs overflowed although the state stayed finite: redo, checking */
             memcpy(x, x_start, sizeof x_start);
             *memory = memory_start;
-            f.budget += f.evaluations; /* the checking pass gets a budget of its own */
+            /* the checking pass runs on what is left of the budget */
             reached = integrate_adaptive(&f, memory, x, t, t_end, h, s->real[VR_tol], 1);
         } else if (reached == t_end) {
             memory->n_rhs += f.evaluations;
@@ -187,7 +193,7 @@ Status step_to(Instance *inst, const char *function, double t, double H)
         memory->n_rhs += f.evaluations;
         if (reached < t_end) {
             finish(inst, t, reached - t, reached);
-            if (f.evaluations + (uint64_t)TABLEAU_RKF45.stages > f.budget)
+            if (f.evaluations + f.checks + (uint64_t)TABLEAU_RKF45.stages > f.budget)
                 log_discard(inst, "%s: rkf45 with tol = %g used its %.0f right-hand-side evaluations "
                             "allowed per call at t = %.17g; stopped at the last successful time %.17g (take shorter "
                             "communication steps or a larger tol)", function, s->real[VR_tol], MAX_EVALUATIONS_PER_CALL,
@@ -202,17 +208,20 @@ Status step_to(Instance *inst, const char *function, double t, double H)
     } else {
         const double substeps = ceil(H / h - 1e-9);
         const double planned = substeps < 1.0 ? 1.0 : substeps;
-        int64_t n, done;
+        int64_t n, first;
         double hs = H / planned;
-        double x_start[STATE_SLOTS];
-        IntegratorMemory memory_start;
         /* the Adams-Bashforth history survives only if the substep stays the same (below) */
         const int history = memory->ab_count > 0 && fabs(hs - memory->ab_step) <= 1e-10 * hs ? memory->ab_count : 0;
-        const double work = evaluations_needed(solver, history, planned);
+        /* The work of the whole call, the state checks included: the method's evaluations, one check
+         * per block (or per substep when reporting), and the redo of one failing block with a check
+         * after each of its substeps. */
+        const double redone = fmin(planned, (double)CHECK_BLOCK);
+        const double work = evaluations_needed(solver, history, planned) +
+                            (reporting ? planned : ceil(planned / CHECK_BLOCK) + evaluations_needed(solver, 0, redone) + redone);
         if (work > MAX_EVALUATIONS_PER_CALL) {
-            log_error(inst, "%s: communicationStepSize = %g with %s at h = %g needs %.3g right-hand-side "
-                      "evaluations (allowed at most %.0f per call): raise h or shorten the step", function, H, method, h, work,
-                      MAX_EVALUATIONS_PER_CALL);
+            log_error(inst, "%s: communicationStepSize = %g with %s at h = %g needs %.0f right-hand-side "
+                      "evaluations, its state checks included (allowed at most %.0f per call): raise h or shorten the "
+                      "step", function, H, method, h, work, MAX_EVALUATIONS_PER_CALL);
             return STATUS_ERROR;
         }
         n = substeps < 1.0 ? 1 : (int64_t)substeps;
@@ -220,25 +229,31 @@ Status step_to(Instance *inst, const char *function, double t, double H)
         /* Adams-Bashforth history is only valid for the substep it was taken with. */
         if (memory->ab_count > 0 && fabs(hs - memory->ab_step) > 1e-10 * hs) memory->ab_count = 0;
         memory->ab_step = hs;
-        memcpy(x_start, x, sizeof x_start);
-        memory_start = *memory;
-        done = integrate_fixed(&f, solver, memory, x, t, hs, n, reporting);
-        if (done == n && evaluate_at(inst, t + H, x, checked)) {
-            memory->n_rhs += f.evaluations;
-            return finish_with(inst, t, H, checked, f.inputs_vary);
-        }
-        if (reporting) { /* the pass checked every substep already: x is the last good one */
+        /* Blocks of CHECK_BLOCK substeps, each checked at its end: a failure is redone, checking every
+         * substep, from the last good block only. */
+        for (first = 0; first < n; first += CHECK_BLOCK) {
+            const int64_t count = n - first < CHECK_BLOCK ? n - first : CHECK_BLOCK;
+            const double t_block_end = first + count == n ? t + H : t + (double)(first + count) * hs;
+            double x_block[STATE_SLOTS];
+            IntegratorMemory memory_block = *memory;
+            int64_t done;
+            memcpy(x_block, x, sizeof x_block);
+            done = integrate_fixed(&f, solver, memory, x, t, hs, first, count, reporting);
+            if (done == count) {
+                f.checks++;
+                if (evaluate_at(inst, t_block_end, x, checked)) continue;
+            }
+            if (!reporting) { /* the reporting pass checked every substep already: x is the last good one */
+                memcpy(x, x_block, sizeof x_block);
+                *memory = memory_block;
+                done = integrate_fixed(&f, solver, memory, x, t, hs, first, count, 1);
+            }
             memory->n_rhs += f.evaluations;
             memory->ab_count = 0;
-            return fail(inst, function, t, t + (double)done * hs, method, h);
+            return fail(inst, function, t, first + done == n ? t + H : t + (double)(first + done) * hs, method, h);
         }
-        /* Redo with a check after every substep to find the last good one. */
-        memcpy(x, x_start, sizeof x_start);
-        *memory = memory_start;
-        done = integrate_fixed(&f, solver, memory, x, t, hs, n, 1);
         memory->n_rhs += f.evaluations;
-        memory->ab_count = 0;
-        return fail(inst, function, t, done == n ? t + H : t + (double)done * hs, method, h);
+        return finish_with(inst, t, H, checked, f.inputs_vary);
     }
 }
 

@@ -19,6 +19,7 @@ from pathlib import Path, PurePosixPath
 from harness.archives import MAX_BYTES, MAX_READ, extract_members, name_problem, open_archive, read_member
 from harness.cosim.structure import Component, Connection, System
 from harness.errors import HarnessError
+from harness.fmi.fmu_instance import read_fmi2_description
 
 SSD = "SystemStructure.ssd"
 
@@ -96,7 +97,29 @@ def _number(text: str | None, what: str) -> float:
     return value
 
 
-def _bound_values(element, what: str) -> dict[str, float | int | str]:
+def _is_number(text) -> bool:
+    try:
+        float(text)
+    except (TypeError, ValueError):
+        return False
+    return True
+
+
+def _units_match(fmu: Path, units: dict[str, str], what: str) -> None:
+    """A value given in a unit other than its variable's would need a conversion this harness does
+    not make: refused by name."""
+    if not units:
+        return
+    declared = {v.name: v.unit or (v.declaredType.unit if v.declaredType is not None else None)
+                for v in read_fmi2_description(fmu).modelVariables}
+    for name, unit in units.items():
+        if name in declared and declared[name] != unit:
+            raise HarnessError(f"{what}: parameter {name!r} is given in {unit!r}, but the FMU's variable is in "
+                               f"{declared[name]!r}; unit conversion is not supported")
+
+
+def _bound_values(element, what: str, units: dict[str, str] | None = None) -> dict[str, float | int | str]:
+    """The parameter values bound to an element; the units they are given in go into `units`."""
     values: dict[str, float | int | str] = {}
     for binding in getattr(element, "parameterBindings", []):
         prefix = binding.prefix or ""
@@ -106,7 +129,11 @@ def _bound_values(element, what: str) -> dict[str, float | int | str]:
                     raise HarnessError(f"{what}: a parameter without a name")
                 name = parameter.name[len(prefix):] if prefix and parameter.name.startswith(prefix) else parameter.name
                 where = f"{what}: parameter {name!r}"
-                if parameter.type == "Real":
+                if getattr(parameter, "unit", None) and units is not None:
+                    units[name] = parameter.unit
+                if parameter.type == "Enumeration" and not _is_number(parameter.value):
+                    values[name] = str(parameter.value)  # SSP names the item; the FMU's items decide
+                elif parameter.type == "Real":
                     values[name] = _number(parameter.value, where)
                 elif parameter.type in ("Integer", "Enumeration"):
                     number = _number(parameter.value, where)
@@ -139,7 +166,13 @@ def _refuse_transformations(root: ET.Element, what: str) -> None:
 def _experiment(root: ET.Element, what: str) -> float | None:
     """stopTime of the SSD's DefaultExperiment (fmpy's reader does not keep it)."""
     for element in root:
-        if element.tag.endswith("}DefaultExperiment") and element.get("stopTime") is not None:
+        if not element.tag.endswith("}DefaultExperiment"):
+            continue
+        if element.get("startTime") is not None and _number(element.get("startTime"),
+                                                            f"{what}: DefaultExperiment startTime") != 0.0:
+            raise HarnessError(f"{what}: DefaultExperiment startTime = {element.get('startTime')}: runs start at "
+                               "t = 0 (another start time is not supported)")
+        if element.get("stopTime") is not None:
             return _number(element.get("stopTime"), f"{what}: DefaultExperiment stopTime")
     return None
 
@@ -194,13 +227,19 @@ def load_ssp(path: Path) -> System:
         ssd_root = ET.fromstring(files[SSD])
         stop = _experiment(ssd_root, what)
         _refuse_transformations(ssd_root, what)
+        for component in ssd_root.iter():  # read from the XML: fmpy's reader does not keep it
+            if component.tag.endswith("}Component") and component.get("implementation") not in (None, "any",
+                                                                                                   "CoSimulation"):
+                raise HarnessError(f"{what}: component {component.get('name')!r} asks for implementation "
+                                   f"{component.get('implementation')!r}; the master runs every FMU as Co-Simulation")
     except HarnessError:
         raise
     except Exception as error:  # lxml, schema and reader errors come as several types
         raise HarnessError(f"{path}: malformed SSD ({_first_line(error)})") from None
     system = ssd.system
     _refuse_unsupported(system, what)
-    system_values = _bound_values(system, what)
+    system_units: dict[str, str] = {}
+    system_values = _bound_values(system, what, system_units)
     elements = system.elements
     for name in system_values:
         if name.split(".", 1)[0] not in {e.name for e in elements} or "." not in name:
@@ -231,7 +270,9 @@ def load_ssp(path: Path) -> System:
             if not fmu.is_file():
                 raise HarnessError(f"{path}: component {element.name!r}: source {sources[element.name]} not found")
             start = {k.split(".", 1)[1]: v for k, v in system_values.items() if k.startswith(element.name + ".")}
-            start.update(_bound_values(element, f"{what}: component {element.name!r}"))
+            units = {k.split(".", 1)[1]: v for k, v in system_units.items() if k.startswith(element.name + ".")}
+            start.update(_bound_values(element, f"{what}: component {element.name!r}", units))
+            _units_match(fmu, units, f"{what}: component {element.name!r}")
             components.append(Component(element.name, fmu, start))
         connections = [Connection(c.startElement, c.startConnector, c.endElement, c.endConnector)
                        for c in system.connections]

@@ -41,6 +41,12 @@ class _Printer(C99CodePrinter):
         return super()._print_Pow(expr)
 
 
+    def _print_DiracDelta(self, expr):
+        # from differentiating Abs or sign twice: zero wherever the expression is defined (a kink's
+        # impulse is not a number the FMU can hand out)
+        return "0.0"
+
+
 _PRINTER = _Printer()
 
 

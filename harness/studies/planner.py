@@ -70,9 +70,14 @@ def object_parameters(component: Component) -> dict[str, float]:
 
 
 def object_eigenvalues(kind: str, component: Component) -> list[complex] | None:
-    """The object's eigenvalues linearized at rest, or None for one without a linear model."""
+    """The object's eigenvalues linearized at rest, from the object file its FMU carries (a derived
+    FMU's own energies, not the registry's object of the same name), or None for one without a
+    linear model or an object file."""
+    spec = object_file_in(component.fmu)
+    if spec is None:
+        return None
     try:
-        return linearized_eigenvalues(kind, object_parameters(component))
+        return linearized_eigenvalues(spec, object_parameters(component))
     except ValueError:
         return None
 

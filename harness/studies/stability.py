@@ -34,7 +34,7 @@ from harness.errors import HarnessError
 from harness.fmi.methods import FIXED_STEP
 from harness.objects.derivation import derive
 from harness.objects.modes import normal_modes
-from harness.objects.object_file import read_object_file
+from harness.objects.object_file import ObjectSpec, read_object_file
 from harness.objects.proof import object_file_in
 from harness.objects.registry import object_file, object_names
 from harness.studies.records import read_records, write_records
@@ -293,12 +293,13 @@ def measured_point(limit: Limit, case: Case) -> complex:
     return limit.measured_limit * max(case.eigenvalues, key=lambda lam: (round(abs(lam), 9), lam.imag))
 
 
-def linearized_eigenvalues(kind: str, p: dict[str, float]) -> list[complex]:
-    """Eigenvalues [1/s] of an object linearized about rest at parameters p, its damping d included
-    (normal modes from the object file's energies)."""
-    modes = normal_modes(derive(read_object_file(object_file(kind))), p)
+def linearized_eigenvalues(kind: str | ObjectSpec, p: dict[str, float]) -> list[complex]:
+    """Eigenvalues [1/s] of an object (a registry name or an object file read) linearized about rest
+    at parameters p, its damping d included (normal modes from the object file's energies)."""
+    spec = kind if isinstance(kind, ObjectSpec) else read_object_file(object_file(kind))
+    modes = normal_modes(derive(spec), p)
     if modes is None:
-        raise ValueError(f"{kind} has no linear model")
+        raise ValueError(f"{spec.identifier} has no linear model")
     return modes.eigenvalues(p.get("d", 0.0))
 
 
