@@ -37,3 +37,16 @@ def open_fmu(fmu_paths, unzipped):
     yield factory
     for instance in instances:
         instance.free()
+
+
+def rebuilt_with_fmpy(unzipped_folder: str, tmp_path: Path) -> Path:
+    """A copy of an extracted FMU whose binaries fmpy's source build made again from sources/."""
+    import shutil
+
+    from fmpy.build import build_platform_binary
+    copy = tmp_path / "fmu"
+    shutil.copytree(unzipped_folder, copy)
+    shutil.rmtree(copy / "binaries")
+    (tmp_path / "build").mkdir()
+    build_platform_binary(str(copy), str(tmp_path / "build"))
+    return copy

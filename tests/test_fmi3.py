@@ -6,7 +6,6 @@ from __future__ import annotations
 
 import ctypes
 import re
-import shutil
 import subprocess
 from pathlib import Path
 
@@ -18,16 +17,18 @@ from fmpy.fmi3 import FMU3Model, FMU3Slave, fmi3Error, fmi3OK
 from fmpy.validation import validate_fmu
 
 
-from harness.fmi.methods import METHODS
+from harness.fmi.methods import METHODS, SOLVERS
 from harness.fmi.fmus import build_dir
 from harness.objects.registry import PROJECT_ROOT, object_names
+
+from conftest import rebuilt_with_fmpy
 
 NAMES = [*object_names(), "Spring"]
 
 
 def solver(name: str) -> int:
     """The enumeration value of a method: its position in the method list, from 1."""
-    return [m.name for m in METHODS].index(name) + 1
+    return SOLVERS.index(name) + 1
 
 
 @pytest.fixture(scope="session")
@@ -327,12 +328,7 @@ def test_the_layer_compiles_against_the_standard_headers():
 @pytest.mark.parametrize("name", ["DoublePendulum", "Spring"])
 def test_fmpy_builds_the_binary_from_the_sources(fmi3_paths, fmi3_unzipped, tmp_path, name):
     """fmpy's source build reads buildDescription.xml: the binary it makes gives the same numbers."""
-    from fmpy.build import build_platform_binary
-    copy = tmp_path / "fmu"
-    shutil.copytree(fmi3_unzipped[name], copy)
-    shutil.rmtree(copy / "binaries")
-    (tmp_path / "build").mkdir()
-    build_platform_binary(str(copy), str(tmp_path / "build"))
+    copy = rebuilt_with_fmpy(fmi3_unzipped[name], tmp_path)
     assert (copy / "binaries" / "x86_64-linux" / f"{name}.so").is_file()
     rebuilt = fmpy.simulate_fmu(str(copy), stop_time=2.0, output_interval=0.1)
     original = fmpy.simulate_fmu(str(fmi3_paths[name]), stop_time=2.0, output_interval=0.1)

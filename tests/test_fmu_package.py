@@ -18,6 +18,8 @@ from harness.fmi.fmus import FMU_NAMES, PROJECT_ROOT
 from harness.fmi.simulation import simulate
 from harness.objects.registry import object_names
 
+from conftest import rebuilt_with_fmpy
+
 SPEC_DEFAULTS = {
     "SimplePendulum": {"g": 9.81, "d": 0, "anchor_x": 0, "anchor_y": 0, "h": 0.008, "tol": 1e-6, "L": 1, "m": 1,
                        "phi": 0.5, "omega": 0, "F_x": 0, "F_y": 0},
@@ -94,12 +96,7 @@ def test_binary_exports_only_fmi2_and_needs_only_libc_and_libm(fmu_paths, unzipp
 @pytest.mark.parametrize("name", ["SimplePendulum", "Spring"])
 def test_sources_rebuild_with_fmpy(fmu_paths, unzipped, tmp_path, name):
     """fmpy.build.build_platform_binary compiles sources/ into a working binary with the same results."""
-    from fmpy.build import build_platform_binary
-    copy = tmp_path / "fmu"
-    shutil.copytree(unzipped[name], copy)
-    shutil.rmtree(copy / "binaries")
-    (tmp_path / "build").mkdir()
-    build_platform_binary(str(copy), str(tmp_path / "build"))
+    copy = rebuilt_with_fmpy(unzipped[name], tmp_path)
     assert (copy / "binaries" / "linux64" / f"{name}.so").is_file()
     rebuilt = simulate(fmu_paths[name], 2.0, 0.1, unzipdir=str(copy))
     original = simulate(fmu_paths[name], 2.0, 0.1, unzipdir=unzipped[name])
