@@ -4,6 +4,7 @@ from __future__ import annotations
 import argparse
 import math
 import sys
+import threading
 from pathlib import Path
 
 from harness.errors import HarnessError
@@ -64,6 +65,7 @@ def command_simulate(args: argparse.Namespace) -> int:
         start_values["solver"] = args.solver
     if args.h is not None:
         start_values["h"] = args.h
+    pairs = _points_to_draw(locate_fmu(args.fmu)) if plot else []
     result = simulate(locate_fmu(args.fmu), stop_time=args.stop, step=args.step, start_values=start_values,
                       keep_interrupted=True, progress=not args.quiet)
     result.write_csv(out)
@@ -72,15 +74,23 @@ def command_simulate(args: argparse.Namespace) -> int:
         raise KeyboardInterrupt
     if plot:
         from harness.scene.traces import draw_traces
-        pairs = plotted_points(locate_fmu(args.fmu), result.columns)
-        if pairs:
-            draw_traces([(result.fmu, result, pairs, (0.0, 0.0))], plot)
-            print(f"wrote {plot}")
+        draw_traces([(result.fmu, result, pairs, (0.0, 0.0))], plot)
+        print(f"wrote {plot}")
     if result.discarded_at is not None:
         print(f"harness: stopped at t = {result.discarded_at}: {result.messages[-1] if result.messages else ''}",
               file=sys.stderr)
         return 1
     return 0
+
+
+def _points_to_draw(fmu: Path) -> list[tuple[str, str]]:
+    """The (x, y) outputs --plot draws; refused before the run when there are none."""
+    from harness.fmi.fmu_instance import read_fmi2_description
+    outputs = [v.name for v in read_fmi2_description(fmu).modelVariables if v.causality == "output"]
+    pairs = plotted_points(fmu, outputs)
+    if not pairs:
+        raise HarnessError(f"--plot: {fmu.name} has no moving point to draw (no pair of x and y outputs)")
+    return pairs
 
 
 def plotted_points(fmu: Path, columns: list[str]) -> list[tuple[str, str]]:
@@ -93,10 +103,36 @@ def plotted_points(fmu: Path, columns: list[str]) -> list[tuple[str, str]]:
     return [(x, y) for x, y in candidates if x in columns and y in columns]
 
 
+class StageReport:
+    """Names a stage of a long job on stderr once it has taken `delay` seconds: quick jobs print
+    nothing, slow ones say what they are busy with."""
+
+    def __init__(self, prefix: str, enabled: bool = True, delay: float = 2.0):
+        self.prefix, self.enabled, self.delay = prefix, enabled, delay
+        self.timer: threading.Timer | None = None
+
+    def __call__(self, stage: str) -> None:
+        self.close()
+        if self.enabled:
+            self.timer = threading.Timer(self.delay, print, (f"{self.prefix}{stage} ...",),
+                                         {"file": sys.stderr, "flush": True})
+            self.timer.daemon = True
+            self.timer.start()
+
+    def close(self) -> None:
+        if self.timer is not None:
+            self.timer.cancel()
+            self.timer = None
+
+
 def command_derive(args: argparse.Namespace) -> int:
     from harness.objects.build import derive_fmu
     from harness.output import output_folder
-    derived = derive_fmu(args.object_file, output_folder(args.out, "--out"))
+    report = StageReport(f"{args.object_file}: ", enabled=not args.quiet)
+    try:
+        derived = derive_fmu(args.object_file, output_folder(args.out, "--out"), report)
+    finally:
+        report.close()
     print(f"wrote {derived.path}")
     return 0
 
@@ -312,11 +348,12 @@ def build_parser() -> argparse.ArgumentParser:
     p = sub.add_parser("derive", help="an object file (T, U, points, forces) -> DIR/<identifier>.fmu")
     p.add_argument("object_file", help="the object's .toml file")
     p.add_argument("--out", default=".", help="folder for the FMU (default: the current one)")
+    p.add_argument("--quiet", action="store_true", help="no progress lines on stderr")
     p.set_defaults(run=command_derive)
 
     p = sub.add_parser("demo", help="the main job: thesis scene, coupled scene, plan, validation, charts -> DIR/index.html")
     p.add_argument("--out", default="out", help="output folder (default out/)")
-    p.add_argument("--duration", type=positive_number, help="simulated time [s] (default: the scene's, 20)")
+    p.add_argument("--duration", type=positive_number, help="simulated and planned time of the thesis scene [s] (default: the scene's, 20)")
     p.set_defaults(run=command_demo)
     return parser
 

@@ -35,7 +35,7 @@ def output_file(text: str | Path, option: str, inputs: tuple[str | Path | None, 
         raise HarnessError(f"{option} {str(text)!r}: names no file")
     if formats is not None and path.suffix.lower() not in formats:
         raise HarnessError(f"{option} {path}: the file name must end in {', '.join(formats)}")
-    path = _writable(path, option)
+    path = writable_file(path, option)
     target = _resolved(path, option)
     for given in inputs:
         if given is None or str(given) == "":
@@ -114,7 +114,7 @@ class _Sink:
 def written(path: Path, header: str | None = None, binary: bool = False) -> Iterator[_Sink]:
     """A text sink whose content replaces `path` when the block ends (see the module's note). When
     the block fails before anything but the header was written, `path` is left as it was."""
-    path = _writable(path, "output")
+    path = writable_file(path, "output")
     try:
         path.parent.mkdir(parents=True, exist_ok=True)
         # a short prefix: the temporary name must fit where the target's own name just fits
@@ -136,7 +136,7 @@ def written(path: Path, header: str | None = None, binary: bool = False) -> Iter
         _finish(sink, temporary)
 
 
-def _writable(path: Path, option: str) -> Path:
+def writable_file(path: Path, option: str) -> Path:
     """The file a write replaces (checked again when writing starts, also for the names a command
     chooses itself inside an output folder): a symbolic link is written through; a folder, device
     or pipe is refused, since the rename would replace it (/dev/null, say)."""

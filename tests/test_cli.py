@@ -19,6 +19,8 @@ def harness(*args: str, cwd=None) -> subprocess.CompletedProcess:
     (["simulate", "missing.fmu"], "no such FMU file"),
     (["simulate", "SimplePendulum", "--set", "foo=1"], "no variable 'foo'"),
     (["simulate", "SimplePendulum", "--step", "-1"], "argument --step: '-1' must be a positive finite number"),
+    (["simulate", "SimplePendulum", "--set", "L=1_000"], "L = '1_000' is not a number"),
+    (["simulate", "SimplePendulum", "--set", "L=\u0967"], "L = '\u0967' is not a number"),  # a Devanagari one
 ])
 def test_user_errors_are_one_line(fmu_paths, tmp_path, args, words):
     result = harness(*args, "--out", str(tmp_path / "x.csv"))
@@ -35,6 +37,25 @@ def test_discard_keeps_the_results_so_far(fmu_paths, tmp_path):
     assert result.returncode == 1 and "euler with h = 0.3" in result.stderr
     table = np.loadtxt(out, delimiter=",", skiprows=1)
     assert len(table) > 10 and np.all(np.isfinite(table))
+
+
+def test_a_step_discarded_without_progress_adds_no_second_row(fmu_paths, tmp_path):
+    """h equal to the communication step: the discarded step got nowhere, so the last row is the last
+    good state, once."""
+    out = tmp_path / "stuck.csv"
+    result = harness("simulate", "SimplePendulum", "--set", "g=1e308", "--set", "h=0.01", "--step", "0.01",
+                     "--solver", "euler", "--out", str(out))
+    assert result.returncode == 1 and "stopped at t = 0" in result.stderr, result.stderr
+    table = np.loadtxt(out, delimiter=",", skiprows=1, ndmin=2)
+    assert len(table) == 1 and table[0, 0] == 0.0 and np.all(np.isfinite(table))
+
+
+def test_step_doubling_that_stops_at_once_counts_no_macro_step(fmu_paths, tmp_path):
+    from harness.fmi.fmus import PROJECT_ROOT
+    result = harness("run", str(PROJECT_ROOT / "scenes" / "coupled_pendulums.json"), "--tolerance", "1e-30",
+                     "--stop", "1", "--out", str(tmp_path / "c.csv"))
+    assert result.returncode == 1 and "could not meet the tolerance 1e-30 after t = 0" in result.stderr
+    assert ": 0 macro steps chosen by step doubling" in result.stdout, result.stdout
 
 
 def test_simulate_writes_csv_and_plot(fmu_paths, tmp_path):
@@ -111,8 +132,27 @@ def test_charts_take_each_object_once(fmu_paths, tmp_path):
 @pytest.mark.parametrize("name", ["CartPendulum", "SphericalPendulum", "DoublePendulum", "Spring"])
 def test_every_fmu_plots_its_moving_points(fmu_paths, tmp_path, name):
     """The picture shows the points the object file names (CartPendulum's coordinate x is no point);
-    an FMU without points writes its CSV and no picture."""
+    --plot of an FMU without points is refused before the run, with nothing written."""
     result = harness("simulate", name, "--stop", "0.1", "--out", str(tmp_path / "p.csv"), "--plot",
                      str(tmp_path / "p.png"))
+    if name == "Spring":
+        assert result.returncode == 2 and result.stderr.count("\n") == 1, result.stderr
+        assert "--plot: Spring.fmu has no moving point to draw" in result.stderr
+        assert not (tmp_path / "p.csv").exists() and not (tmp_path / "p.png").exists()
+        return
     assert result.returncode == 0, result.stderr
-    assert (tmp_path / "p.png").exists() == (name != "Spring")
+    assert (tmp_path / "p.png").stat().st_size > 10_000
+
+
+def test_a_stage_report_speaks_only_when_a_stage_is_slow(capsys):
+    import time
+
+    from harness.cli import StageReport
+    report = StageReport("job: ", delay=0.2)
+    report("quick")
+    report("slow")
+    time.sleep(0.6)
+    report("after")
+    report.close()
+    time.sleep(0.4)
+    assert capsys.readouterr().err == "job: slow ...\n"

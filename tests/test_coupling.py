@@ -85,4 +85,34 @@ def test_a_system_of_another_shape_is_a_one_line_error(fmu_paths, tmp_path, caps
                                  "components": {"p": {"fmu": "SimplePendulum"}}, "connections": []}))
     assert main(["chart", "coupling", "--system", str(scene), "--out", str(tmp_path / "out")]) == 2
     err = capsys.readouterr().err
-    assert "two SimplePendulums joined by one Spring" in err and err.count("\n") == 1
+    assert "two SimplePendulums whose bobs are joined by one Spring" in err and err.count("\n") == 1
+
+
+@pytest.mark.parametrize("change, named", [
+    ("no forces back", "spring.Fa_x -> left.F_x"),
+    ("crossed velocity", "right.v_x -> spring.a_vx"),
+    ("linear model", "left.model = 'linear'"),
+    ("a third object", "DoublePendulum"),
+])
+def test_a_scene_the_reference_does_not_describe_is_refused_by_what_differs(fmu_paths, tmp_path, capsys, change,
+                                                                             named):
+    """The standard scene with one thing changed has another monolithic reference: the chart and the
+    coupled planner refuse it, naming the difference, rather than measure against the wrong one."""
+    scene = json.loads(SCENE.read_text())
+    if change == "no forces back":
+        scene["connections"] = [c for c in scene["connections"] if not c[0].startswith("spring.F")]
+    elif change == "crossed velocity":
+        scene["connections"] = [["right.v_x", "spring.a_vx"] if c == ["left.v_x", "spring.a_vx"] else c
+                                for c in scene["connections"]]
+    elif change == "linear model":
+        scene["components"]["left"]["start"]["model"] = "linear"
+    else:
+        scene["components"]["extra"] = {"fmu": "DoublePendulum"}
+    path = tmp_path / "changed.json"
+    path.write_text(json.dumps(scene))
+    for command in (["chart", "coupling", "--system", str(path), "--out", str(tmp_path / "out"), "--repeats", "1"],
+                    ["plan", str(path), "--tolerance", "0.001", "--out", str(tmp_path / "plan.csv")]):
+        assert main(command) == 2, command
+        err = capsys.readouterr().err
+        assert "the coupling reference knows one scene only" in err and named in err and err.count("\n") == 1, err
+    assert CoupledPendulums.from_system(load_system(SCENE)).names == ("left", "right")

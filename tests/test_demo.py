@@ -46,3 +46,21 @@ def test_the_tables_have_their_data(demo):
     for name in ("plan.csv", "work-precision.csv", "stability.csv", "coupled_pendulums.csv", "double.csv",
                  "spring_D34.csv", "spring_D104.csv", "simple.csv"):
         assert len((out / name).read_text().splitlines()) > 4, name
+
+
+def test_the_plan_covers_the_duration_asked_for(fmu_paths, tmp_path):
+    """demo --duration plans the thesis scene over that time: the default's cost doubles with it."""
+    import csv
+
+    from harness.scene.report import plan_section
+
+    def default_costs(duration: float) -> list[int]:
+        out = tmp_path / str(duration)
+        out.mkdir()
+        section = plan_section(out, duration)
+        assert section.passed and f"for {duration:g} s;" in section.verdict, section.verdict
+        with open(out / "plan.csv", newline="") as table:
+            return [int(row["default_cost"]) for row in csv.DictReader(table)]
+    short, double = default_costs(1.0), default_costs(2.0)
+    assert len(short) == len(double) >= 3
+    assert all(abs(b - 2 * a) <= 2 for a, b in zip(short, double)), (short, double)

@@ -689,6 +689,9 @@ def scene_with(workspace: Path, change) -> Path:
 @pytest.mark.parametrize("change,words", [
     (lambda s: s.update(stop=int("9" * 400)), '"stop" = inf must be a positive finite number'),
     (lambda s: s["components"]["simple"]["start"].update(phi=-int("9" * 400)), "'phi' = -inf is not a finite number"),
+    (lambda s: s["components"]["simple"]["start"].update(phi="0.5"), "'phi' = \"0.5\" is a string: write a number"),
+    (lambda s: s["components"]["simple"]["start"].update(phi="1_000"), "phi = '1_000' is not a number"),
+    (lambda s: s["components"]["simple"]["start"].update(phi="\u0967"), "phi = '\u0967' is not a number"),
     (lambda s: s["components"]["simple"].update(traces=[["nope", "y"]]), "a trace names 'nope', which is not an output"),
     (lambda s: s["camera"].update(frame_rate=1e300), "frames; lower the camera's frame rate"),
     (lambda s: s["camera"].update(frame_rate=1e-300), "is longer than the 0.2 s planned")])

@@ -10,9 +10,11 @@ import sys
 import tempfile
 from pathlib import Path
 
+import numpy as np
 import pytest
 from fmpy import read_model_description
 
+from harness.fmi.methods import SOLVERS
 from harness.objects.derivation import derive
 from harness.objects.build import derive_fmu
 from harness.objects.proof import numeric_route_agreement, object_file_in, observed_order, prove
@@ -165,3 +167,52 @@ def test_a_derived_slow_pendulum_proves_itself_and_plans_from_its_own_file(tmp_p
     eigenvalues = object_eigenvalues("LongPendulum", Component("p", fmu))
     assert eigenvalues is not None
     assert max(abs(lam) for lam in eigenvalues) == pytest.approx(math.sqrt(9.81 / 10.0), rel=1e-9)
+
+
+RIPPLED_WIRE = '''
+identifier = "RippledWire"
+description = "A bead on a wire with a potential rippled at 1000 waves per radian"
+[parameters]
+k = { start = 2.0, unit = "J", min = 0.0 }
+m = { start = 0.5, unit = "kg", min = 1e-9 }
+[coordinates]
+x = { start = 0.0, unit = "m", velocity = "v" }
+[energy]
+T = "m/2*v**2"
+U = "k*cos(1000*x)"
+[points]
+bead = { x = "x", y = "0" }
+'''
+
+
+def test_a_high_multiple_angle_derives_at_once_and_oscillates_at_its_frequency(tmp_path):
+    """cos(1000*x) stays whole (its expansion in cos(x) is a polynomial of degree 1000), and the
+    derivation reports its stages (the command line names a stage that takes over 2 s). About the minimum x0 = pi/1000 the bead's small oscillation is
+    x0 + a cos(w t) with w = 1000 sqrt(k/m) = 2000 rad/s."""
+    import fmpy
+    path = write(tmp_path, RIPPLED_WIRE, "RippledWire.toml")
+    stages: list[str] = []
+    derive_fmu(path, tmp_path, stages.append)
+    assert [stage.split(" (")[0] for stage in stages] == [
+        "deriving Lagrange's equations", "generating the C code", "simplifying the equations for the documentation",
+        "compiling"]
+    x0, amplitude, w = math.pi / 1000, 1e-6, 2000.0
+    rows = fmpy.simulate_fmu(str(tmp_path / "RippledWire.fmu"), stop_time=0.01, output_interval=1e-4,
+                             start_values={"x": x0 + amplitude, "solver": SOLVERS.index("rk4") + 1, "h": 1e-5}, output=["x"])
+    expected = x0 + amplitude * np.cos(w * rows["time"])
+    assert np.max(np.abs(rows["x"] - expected)) < 1e-3 * amplitude
+
+
+def test_display_simplification_is_cut_off_by_its_clock_and_zero_tests_evaluate():
+    import sympy as sp
+
+    from harness.objects.derivation import readable, vanishes
+    x, y = sp.symbols("x y")
+    slow = sp.exp(x) * (sp.sin(x) + sp.cos(2 * x) + sp.exp(x)) ** 10   # simplify needs tens of seconds
+    assert readable([slow, sp.sin(x) ** 2 + sp.cos(x) ** 2], seconds=0.3) == [slow, sp.sin(x) ** 2 + sp.cos(x) ** 2]
+    assert readable([sp.sin(x) ** 2 + sp.cos(x) ** 2, slow], seconds=30)[0] == 1
+    spec = read_object_file("rippled.toml", RIPPLED_WIRE)
+    assert vanishes(sp.sin(x + y) - sp.sin(x) * sp.cos(y) - sp.cos(x) * sp.sin(y), spec)
+    assert vanishes((sp.sin(x) ** 2 + sp.cos(x) ** 2 - 1) * slow, spec)
+    assert not vanishes(sp.sin(x) - x, spec)          # zero at x = 0 only
+    assert not vanishes(sp.sqrt(x - 10), spec)        # cannot be evaluated as a real number

@@ -358,6 +358,7 @@ class Master:
         smallest = (t_end - t) / 2 ** 20
         h = min(self.h_proposal or (t_end - t), t_end - t)
         rejected = 0
+        steps_before = self.macro_steps  # a failed interval adds none: its steps reach no recorded row
         while t < t_end:
             last = h >= t_end - t
             step = t_end - t if last else h
@@ -387,6 +388,7 @@ class Master:
                 rejected += 1
                 h = step * min(factor, 0.5)
                 if h < smallest:
+                    self.macro_steps = steps_before
                     return (DISCARD, culprit, rejected) if status == DISCARD else (ERROR, None, rejected)
         self.h_proposal = h
         return OK, None, rejected

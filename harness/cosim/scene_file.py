@@ -28,6 +28,7 @@ from pathlib import Path
 
 from harness.cosim.structure import Component, Connection, System
 from harness.errors import HarnessError
+from harness.fmi.fmu_instance import is_number_text
 from harness.fmi.fmus import FMU_NAMES, locate_fmu
 
 MAX_SCENE_BYTES = 16 << 20
@@ -70,6 +71,8 @@ class _Reader:
 
     def start_value(self, value, where: str) -> float | str:
         if isinstance(value, str):
+            if is_number_text(value):
+                raise self.fail(where, f"= {_short(value)} is a string: write a number without quotes")
             return value  # an enumeration item; the FMU's own check names the allowed ones
         if isinstance(value, bool) or not isinstance(value, (int, float)):
             raise self.fail(where, f"must be a number or an enumeration item's name, not {_kind(value)}")

@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import ctypes
 import math
+import re
 import shutil
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -95,12 +96,13 @@ def read_fmi2_description(path: Path):
         raise HarnessError(f"{path}: invalid modelDescription.xml ({_first_line(error)})") from None
 
 
-def _is_number_text(text: str) -> bool:
-    try:
-        float(text)
-    except ValueError:
-        return False
-    return True
+# A decimal number as C and JSON write it, in ASCII (Python's float() also takes "1_000" and other
+# scripts' digits), or the names of infinity and NaN, which the FMU's range check then refuses.
+_NUMBER_TEXT = re.compile(r"[+-]?(?:(?:\d+\.?\d*|\.\d+)(?:[eE][+-]?\d+)?|inf|infinity|nan)", re.IGNORECASE | re.ASCII)
+
+
+def is_number_text(text: str) -> bool:
+    return _NUMBER_TEXT.fullmatch(text.strip()) is not None
 
 
 def _number(name: str, value) -> float:
@@ -108,7 +110,7 @@ def _number(name: str, value) -> float:
     the FMU's own range check to refuse with its message."""
     if isinstance(value, (int, float)) and not isinstance(value, bool):
         return float(value) if not isinstance(value, int) or abs(value) < 2**1023 else math.inf
-    if isinstance(value, str) and _is_number_text(value):
+    if isinstance(value, str) and is_number_text(value):
         return float(value)
     raise HarnessError(f"{name} = {value!r} is not a number")
 
@@ -201,7 +203,7 @@ class FmuInstance:
             items = self._enumeration_items(variable)
             if value in items:
                 return "Integer", items[value]
-            if not _is_number_text(value):
+            if not is_number_text(value):
                 raise HarnessError(f"{name} = {value!r} is not one of {', '.join(items)}")
         number = _number(name, value)
         if variable.type == "Real":

@@ -155,8 +155,10 @@ class Recorder:
                 status = do_step(component, t, times[i] - t, 1)
                 if status == DISCARD:
                     discarded_at = instance.last_successful_time()
-                    record(i)
-                    rows = i + 1
+                    rows = i
+                    if discarded_at > t:  # the state it got to is a row of its own; else it is row i - 1
+                        record(i)
+                        rows = i + 1
                     break
                 if status >= ERROR:
                     raise HarnessError(f"{name}: fmi2DoStep at t = {t} returned {STATUS_NAMES[status]}: "
@@ -170,8 +172,8 @@ class Recorder:
             interrupted, rows, discarded_at = True, i, None
         table = np.empty((rows, len(self.columns)))
         table[:, 0] = self.grid[:rows]
-        if discarded_at is not None:
-            table[-1, 0] = discarded_at
+        if discarded_at is not None and rows > 1 and discarded_at > self.grid[rows - 2]:
+            table[-1, 0] = discarded_at  # the row of the state the discarded step got to
         table[:, 1:1 + n_real] = self.reals[:rows, :n_real]
         table[:, 1 + n_real:] = self.integers[:rows, :n_int]
         return SimulationResult(self.columns, table, instance.path.stem, discarded_at,

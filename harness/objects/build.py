@@ -14,14 +14,15 @@ import shutil
 import sys
 import tempfile
 import zipfile
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 
 from harness.errors import HarnessError
-from harness.objects.generate import generate
+from harness.objects.generate import no_progress, generate
 from harness.objects.model_description import SOURCE_FILES
-from harness.objects.object_file import ObjectFileError
-from harness.output import written
+from harness.objects.object_file import ObjectFileError, read_object_file
+from harness.output import writable_file, written
 from harness.processes import run_program
 
 PROJECT_ROOT = Path(__file__).resolve().parents[2]
@@ -37,16 +38,22 @@ class DerivedFmu:
     path: Path
 
 
-def derive_fmu(object_file: str | Path, out: str | Path) -> DerivedFmu:
-    """Builds out/<identifier>.fmu from an object file. Raises HarnessError with one line."""
+def derive_fmu(object_file: str | Path, out: str | Path, progress: Callable[[str], None] = no_progress) -> DerivedFmu:
+    """Builds out/<identifier>.fmu from an object file. Raises HarnessError with one line. `progress`
+    is told each stage as it begins."""
     out = Path(out)
     compiler = shlex.split(os.environ.get("CC", "cc"))
     if shutil.which(compiler[0]) is None:
         raise HarnessError(f"no C compiler: {compiler[0]} is not on PATH (set CC)")
+    try:
+        identifier = read_object_file(object_file).identifier
+    except ObjectFileError as error:
+        raise HarnessError(str(error)) from None
+    writable_file(out / f"{identifier}.fmu", "--out")  # refused before the work, not after it
     with tempfile.TemporaryDirectory(prefix="derive-") as scratch:
         work = Path(scratch)
         try:
-            generated = generate(object_file, work / "generated")
+            generated = generate(object_file, work / "generated", progress)
         except ObjectFileError as error:
             raise HarnessError(str(error)) from None
         folder = generated.folder
@@ -71,6 +78,7 @@ def derive_fmu(object_file: str | Path, out: str | Path) -> DerivedFmu:
         library = binaries / f"{generated.identifier}.so"
         command = [*compiler, *C_FLAGS, "-shared", f"-I{sources}", "-o", str(library),
                    *(str(sources / name) for name in SOURCE_FILES), "-lm"]
+        progress("compiling")
         result = run_program(command)
         if result.returncode != 0:
             first = next((line for line in result.stderr.splitlines() if "error" in line), result.stderr.strip())

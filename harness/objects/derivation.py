@@ -6,12 +6,15 @@ With p = dT/dv the momenta, d/dt p - dL/dq = Q and T quadratic in the velocities
     f = dL/dq - (dp/dq) v - dp/dt,         Q_j = sum over forces F . dr/dq_j,
 
 then the framework's damping a_j -= d v_j. The mass matrix is left to a factorization in the
-generated C, so no symbolic inverse is ever formed. Trigonometric functions of sums are expanded
-first, so that only sines and cosines of single coordinates remain (a compiler pairs each into one
-sincos call).
+generated C, so no symbolic inverse is ever formed. Sines and cosines of sums are expanded first, so
+that only sines and cosines of single terms remain (a compiler pairs each into one sincos call).
+Multiples such as cos(1000*x) stay whole: their expansion is a polynomial of that degree, slow to
+derive and, by cancellation, inaccurate to evaluate.
 """
 from __future__ import annotations
 
+import signal
+import threading
 from dataclasses import dataclass
 
 import numpy as np
@@ -50,7 +53,17 @@ class Derivation:
 
 
 def _expand(expr: sp.Expr) -> sp.Expr:
-    return sp.expand_trig(expr)
+    return expr.replace(lambda e: isinstance(e, (sp.sin, sp.cos)) and e.args[0].is_Add, _angle_sum)
+
+
+def _angle_sum(function: sp.Expr) -> sp.Expr:
+    head, *tail = sp.Add.make_args(function.args[0])
+    rest = sp.Add(*tail)
+    sin_a, cos_a = sp.sin(head), sp.cos(head)
+    sin_b, cos_b = _expand(sp.sin(rest)), _expand(sp.cos(rest))
+    if isinstance(function, sp.sin):
+        return sin_a * cos_b + cos_a * sin_b
+    return cos_a * cos_b - sin_a * sin_b
 
 
 def total_derivative(expr: sp.Expr, q, v, a, t) -> sp.Expr:
@@ -93,6 +106,65 @@ def derive(spec: ObjectSpec) -> Derivation:
                   for pos in positions]
     linear, reason = _linearize(spec, M, T, U, Q, inputs)
     return Derivation(spec, M, sp.Matrix(f), sp.Matrix(Q), inputs, positions, velocities, T, U, linear, reason)
+
+
+# SymPy's simplify has no bound on its work: a 32-operation expression with a tenth power of a sum
+# takes half a minute, and its size does not tell. So simplification for display runs on a clock,
+# and zero tests are done by evaluation.
+SIMPLIFY_SECONDS = 60.0  # for one documentation page; the project's objects need under 15
+ZERO_TEST_POINTS = 4
+
+
+class _OutOfTime(Exception):
+    pass
+
+
+def readable(expressions: list, seconds: float = SIMPLIFY_SECONDS) -> list[sp.Expr]:
+    """The expressions simplified, in order, while `seconds` last; the rest as they are. The clock is
+    a timer signal, so this simplifies only in the main thread (elsewhere all are returned as they
+    are)."""
+    expressions = [sp.sympify(e) for e in expressions]
+    if threading.current_thread() is not threading.main_thread():
+        return expressions
+
+    def out_of_time(signum, frame):
+        raise _OutOfTime
+    previous = signal.signal(signal.SIGALRM, out_of_time)
+    signal.setitimer(signal.ITIMER_REAL, seconds)
+    result = []
+    try:
+        for expr in expressions:
+            result.append(sp.simplify(expr))
+    except _OutOfTime:
+        result += expressions[len(result):]
+    finally:
+        signal.setitimer(signal.ITIMER_REAL, 0)
+        signal.signal(signal.SIGALRM, previous)
+    return result
+
+
+def vanishes(expr, spec: ObjectSpec) -> bool:
+    """expr is zero for all values of its symbols, tested by evaluation at the start values and at
+    random values about them: an analytic expression that is not identically zero vanishes at such
+    points with probability zero. Where it cannot be evaluated: False."""
+    expr = sp.sympify(expr)
+    if expr == 0:
+        return True
+    symbols = sorted(expr.free_symbols, key=str)
+    start = _start_values(spec)
+    center = np.array([float(start.get(symbol, 0.5)) for symbol in symbols])
+    generator = np.random.default_rng(20261123)
+    evaluate = sp.lambdify(symbols, [expr, *sp.Add.make_args(expr)], "math")
+    for point in range(ZERO_TEST_POINTS):
+        values = center if point == 0 else \
+            center * (1 + 0.3 * generator.uniform(-1, 1, center.size)) + 0.1 * generator.uniform(-1, 1, center.size)
+        try:
+            value, *terms = (complex(x) for x in evaluate(*values))
+        except (ValueError, ZeroDivisionError, OverflowError, TypeError):
+            return False
+        if not abs(value) <= 1e-9 * max(1.0, sum(abs(x) for x in terms)):
+            return False
+    return True
 
 
 def _start_values(spec: ObjectSpec) -> dict[sp.Symbol, float]:
@@ -141,10 +213,9 @@ def _linearize(spec: ObjectSpec, M: sp.Matrix, T: sp.Expr, U: sp.Expr, Q: list[s
         return None, "the object is driven (t appears in its energies or points)"
     at_rest = {qj: spec.rest[c.name] for qj, c in zip(q, spec.coordinates)}
     zero_v = {vj: 0 for vj in v}
-    gradient = [sp.simplify(sp.diff(U, qj).subs(at_rest)) for qj in q]
-    if any(g != 0 for g in gradient):
+    if not all(vanishes(sp.diff(U, qj).subs(at_rest), spec) for qj in q):
         return None, "the rest state is not an equilibrium (dU/dq is not zero there)"
-    if any(sp.simplify(sp.diff(T, vj).subs(zero_v)) != 0 for vj in v):
+    if not all(vanishes(sp.diff(T, vj).subs(zero_v), spec) for vj in v):
         return None, "T has terms linear in the velocities"
     M0 = M.subs(at_rest)
     K0 = sp.hessian(U, q).subs(at_rest)

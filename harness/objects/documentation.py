@@ -6,7 +6,7 @@ import html
 import sympy as sp
 from sympy.printing.mathml import mathml
 
-from harness.objects.derivation import Derivation
+from harness.objects.derivation import Derivation, readable
 
 
 def _math(expr) -> str:
@@ -31,10 +31,12 @@ def equations_html(derivation: Derivation) -> str:
             "Q<sub>j</sub> = &Sigma; F&middot;&part;r/&part;q<sub>j</sub> over the force inputs.</p>",
             "<table><tr><th>j</th><th>coordinate</th><th>row j of M</th><th>f<sub>j</sub></th>"
             "<th>Q<sub>j</sub></th></tr>"]
+    shown = readable([*derivation.M, *derivation.f, *derivation.Q])  # one clock for the page
+    M, f, Q = shown[:n * n], shown[n * n:n * n + n], shown[n * n + n:]
     for j, c in enumerate(spec.coordinates):
-        row = ", ".join(_math(sp.simplify(derivation.M[j, k])) for k in range(n))
+        row = ", ".join(_math(M[j * n + k]) for k in range(n))
         rows.append(f"<tr><td>{j + 1}</td><td>{html.escape(c.name)}</td><td>{row}</td>"
-                    f"<td>{_math(sp.simplify(derivation.f[j]))}</td><td>{_math(sp.simplify(derivation.Q[j]))}</td></tr>")
+                    f"<td>{_math(f[j])}</td><td>{_math(Q[j])}</td></tr>")
     rows.append("</table>")
     rows.append("<h3>Points</h3><ul>")
     for point, position in zip(spec.points, derivation.positions):

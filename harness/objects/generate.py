@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import argparse
 import sys
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -31,9 +32,16 @@ def _write(path: Path, text: str) -> None:
     path.write_text(text)
 
 
-def generate(object_file: str | Path, out: str | Path) -> GeneratedObject:
+def no_progress(stage: str) -> None:
+    pass
+
+
+def generate(object_file: str | Path, out: str | Path, progress: Callable[[str], None] = no_progress) -> GeneratedObject:
+    """`progress` is told each stage as it begins."""
     spec = read_object_file(object_file)
+    progress("deriving Lagrange's equations")
     derivation = derive(spec)
+    progress("generating the C code")
     code = generate_c(derivation)
     xml = model_description(derivation)
     folder = Path(out) / spec.identifier
@@ -43,6 +51,7 @@ def generate(object_file: str | Path, out: str | Path) -> GeneratedObject:
     _write(folder / "modelDescription.xml", xml)
     (folder / "fmi3").mkdir(exist_ok=True)
     _write(folder / "fmi3" / "modelDescription.xml", from_fmi2(xml, dependencies(derivation)))
+    progress("simplifying the equations for the documentation (at most a minute)")
     _write(folder / "equations.html", equations_html(derivation))
     return GeneratedObject(spec.identifier, folder, derivation)
 

@@ -23,7 +23,7 @@ from xml.sax.saxutils import quoteattr
 
 import sympy as sp
 
-from harness.objects.derivation import Derivation
+from harness.objects.derivation import Derivation, vanishes
 from harness.objects.model_description import model_description
 
 # The FMI 2.0 <ScalarVariable> attributes FMI 3.0 keeps as they are, in this order.
@@ -47,7 +47,7 @@ def dependencies(derivation: Derivation) -> dict[str, set[str]]:
     result: dict[str, set[str]] = {}
     for c, velocity in zip(spec.coordinates, v):
         result[f"der({c.name})"] = {str(velocity)}
-    for block in _coupled_blocks(derivation.M):
+    for block in _coupled_blocks(derivation):
         needs = of(*(derivation.M[i, j] for i in block for j in range(derivation.n)),
                    *(derivation.f[i] for i in block), *(derivation.Q[i] for i in block))
         needs |= {str(v[i]) for i in block}  # damping acts on each coordinate's own velocity
@@ -67,9 +67,9 @@ def dependencies(derivation: Derivation) -> dict[str, set[str]]:
     return result
 
 
-def _coupled_blocks(M: sp.Matrix) -> list[list[int]]:
+def _coupled_blocks(derivation: Derivation) -> list[list[int]]:
     """Groups of coordinates joined by non-zero off-diagonal entries of the mass matrix."""
-    n = M.shape[0]
+    M, n = derivation.M, derivation.n
     group = list(range(n))
 
     def root(i: int) -> int:
@@ -78,7 +78,7 @@ def _coupled_blocks(M: sp.Matrix) -> list[list[int]]:
         return i
     for i in range(n):
         for j in range(i + 1, n):
-            if sp.simplify(M[i, j]) != 0:
+            if not vanishes(M[i, j], derivation.spec):
                 group[root(j)] = root(i)
     blocks: dict[int, list[int]] = {}
     for i in range(n):

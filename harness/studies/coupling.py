@@ -63,23 +63,38 @@ class CoupledPendulums:
 
     @classmethod
     def from_system(cls, system: System) -> "CoupledPendulums":
+        """The physics of `system`, which must be exactly this scene: two of the project's
+        SimplePendulums, nonlinear, and one Spring whose ends read each bob's position and velocity
+        and whose forces act on those bobs. Anything else has another reference (HarnessError)."""
         from harness.fmi.fmu_instance import read_fmi2_description
 
-        def values(component) -> dict:
+        def values(component) -> tuple[str, dict]:
             description = read_fmi2_description(component.fmu)
             merged = {v.name: float(v.start) for v in description.modelVariables
                       if v.type == "Real" and v.start is not None}
             merged.update({k: v for k, v in component.start.items() if not isinstance(v, str)})
             return description.coSimulation.modelIdentifier, merged
+        needs = f"{system.name}: the coupling reference knows one scene only: two SimplePendulums whose bobs are " \
+                f"joined by one Spring, forces fed back"
         kinds = {c.name: values(c) for c in system.components}
         pendulums = [name for name, (kind, _) in kinds.items() if kind == "SimplePendulum"]
         springs = [name for name, (kind, _) in kinds.items() if kind == "Spring"]
-        if len(pendulums) != 2 or len(springs) != 1:
-            raise HarnessError(f"{system.name}: the coupling chart needs two SimplePendulums joined by one Spring")
+        if len(pendulums) != 2 or len(springs) != 1 or len(kinds) != 3:
+            raise HarnessError(f"{needs}; this one has {', '.join(sorted(k for k, _ in kinds.values()))}")
         spring = springs[0]
-        ends = {c.input[0]: c.source for c in system.connections if c.target == spring}  # 'a' or 'b' -> pendulum
+        ends = {c.input[0]: c.source for c in system.connections if c.target == spring and c.input == f"{c.input[0]}_x"}
         if set(ends) != {"a", "b"} or set(ends.values()) != set(pendulums):
-            raise HarnessError(f"{system.name}: the Spring's ends a and b must be connected to the two pendulums")
+            raise HarnessError(f"{needs}; the Spring's ends a and b must read the two pendulums")
+        expected = set()
+        for end, pendulum in ends.items():
+            expected |= {(pendulum, output, spring, f"{end}_{suffix}")
+                         for output, suffix in (("x", "x"), ("y", "y"), ("v_x", "vx"), ("v_y", "vy"))}
+            expected |= {(spring, f"F{end}_{axis}", pendulum, f"F_{axis}") for axis in "xy"}
+        actual = {(c.source, c.output, c.target, c.input) for c in system.connections}
+        if actual != expected:
+            wrong = sorted(" -> ".join((f"{a}.{b}", f"{c}.{d}")) for a, b, c, d in actual ^ expected)
+            raise HarnessError(f"{needs}; missing or extra: {', '.join(wrong[:4])}")
+        _check_project_pendulums(system, pendulums, needs)
         p = {name: kinds[name][1] for name in pendulums}
         return cls(p[ends["a"]], p[ends["b"]], kinds[spring][1], (ends["a"], ends["b"]))
 
@@ -127,6 +142,25 @@ class CoupledPendulums:
                                "the coupling is stiff or the motion blows up")
         bobs = [self._bobs(y) for y in solution.y.T]
         return np.array([b[0] for b in bobs]), np.array([b[1] for b in bobs])
+
+
+def _check_project_pendulums(system: System, names: list[str], needs: str) -> None:
+    """Each pendulum runs the nonlinear equations of the project's SimplePendulum object file."""
+    from harness.objects.proof import object_file_in
+    from harness.objects.registry import object_file
+    from harness.objects.object_file import read_object_file
+    project = read_object_file(object_file("SimplePendulum"))
+    for component in system.components:
+        if component.name not in names:
+            continue
+        model = component.start.get("model", "nonlinear")
+        if model not in ("nonlinear", 1):
+            raise HarnessError(f"{needs}; {component.name}.model = {model!r}: the reference is the nonlinear pendulum")
+        carried = object_file_in(component.fmu)
+        if carried is None or (carried.T, carried.U) != (project.T, project.U) or \
+                [p.position for p in carried.points] != [p.position for p in project.points]:
+            raise HarnessError(f"{needs}; {component.name}: {Path(component.fmu).name} does not carry the project's "
+                               f"SimplePendulum energies and points")
 
 
 def coupling_error(result, physics: CoupledPendulums) -> float:
