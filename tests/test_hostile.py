@@ -566,6 +566,16 @@ def assert_finite_when_ok(fmu: FmuInstance) -> None:
         if fmu.call("fmi2GetRealOutputDerivatives", (ctypes.c_uint * n)(*outputs), n, (ctypes.c_int * n)(*[1] * n),
                     slopes) == OK:
             assert all(math.isfinite(x) for x in slopes), list(slopes)
+    # the Jacobian of the continuous outputs, column by column over the states and inputs
+    unknowns = [v.valueReference for v in variables if v.type == "Real" and v.causality == "output"
+                and v.variability == "continuous"]
+    knowns = [v.valueReference for v in variables if v.type == "Real" and v.causality == "input"] + \
+        [d.variable.derivative.valueReference for d in fmu.model_description.derivatives]
+    column = (ctypes.c_double * max(1, len(unknowns)))()
+    for known in knowns:
+        if fmu.call("fmi2GetDirectionalDerivative", (ctypes.c_uint * len(unknowns))(*unknowns), len(unknowns),
+                    (ctypes.c_uint * 1)(known), 1, (ctypes.c_double * 1)(1.0), column) == OK:
+            assert all(math.isfinite(x) for x in column[:len(unknowns)]), (known, list(column))
 
 
 # ---- SSP features the harness does not carry out, and files it must not read -----------------

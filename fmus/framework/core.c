@@ -870,3 +870,143 @@ Status core_do_step(Instance *inst, const char *function, double t, double H)
     return status;
 }
 
+/* ---------------------------------------------------------------- directional derivatives */
+
+/* The index of the continuous state with value reference vr (the states come first), or -1. */
+static int state_index(unsigned int vr)
+{
+#if N_STATES > 0
+    return vr < N_STATES ? (int)vr : -1;
+#else
+    (void)vr;
+    return -1;
+#endif
+}
+
+/* Where a known of a directional derivative goes: a continuous state (its index) or an input. */
+static int known_valid(Instance *inst, const char *function, unsigned int vr)
+{
+    if (!real_reference_known(inst, function, vr)) return 0;
+    if (state_index(vr) >= 0 || input_index(vr) >= 0) return 1;
+    log_error(inst, "%s: known %s (value reference %u) is not a continuous state or a Real input (allowed: "
+              "the states and inputs)", function, REAL_VARIABLES[vr].name, vr);
+    return 0;
+}
+
+/* An unknown: a state derivative or a continuous output (the states are outputs too). */
+static int unknown_valid(Instance *inst, const char *function, unsigned int vr)
+{
+    if (!real_reference_known(inst, function, vr)) return 0;
+    if (state_index(vr - N_STATES) >= 0 || /* a derivative: the derivatives follow the states */
+        (REAL_VARIABLES[vr].causality == CAUSALITY_OUTPUT && REAL_VARIABLES[vr].variability == VARIABILITY_CONTINUOUS))
+        return 1;
+    log_error(inst, "%s: unknown %s (value reference %u) is not a state derivative or a continuous output "
+              "(allowed: those)", function, REAL_VARIABLES[vr].name, vr);
+    return 0;
+}
+
+/* Jacobian times the seed (by value reference of the knowns) into change[N_REAL] (by value reference
+ * of the unknowns); the outputs must be valid. */
+static void jacobian_times(Instance *inst, const unsigned int known[], size_t nknown, const double seed[],
+                           double change[])
+{
+    double seed_x[STATE_SLOTS] = {0}, seed_u[INPUT_SLOTS] = {0}, ddx[STATE_SLOTS] = {0};
+    const double *dx = N_STATES > 0 ? inst->s.real + N_STATES : NULL;
+    size_t k;
+    int i;
+    for (k = 0; k < nknown; k++) {
+        if (state_index(known[k]) >= 0) seed_x[state_index(known[k])] += seed[k];
+        else seed_u[input_index(known[k])] += seed[k];
+    }
+    memset(change, 0, N_REAL * sizeof *change);
+    model_directional(&inst->constants, inst->s.time, inst->s.real, dx, seed_x, seed_u, ddx, change);
+    for (i = 0; i < N_STATES; i++) {
+        change[i] = seed_x[i];
+        change[N_STATES + i] = ddx[i];
+    }
+}
+
+static int derivative_arguments_valid(Instance *inst, const char *function, const unsigned int unknown[],
+                                      size_t n_unknown, const unsigned int known[], size_t n_known,
+                                      const double seed[], size_t n_seed)
+{
+    size_t i;
+    if (!core_arrays_present(inst, function, n_known, known, known) || !core_arrays_present(inst, function, n_unknown,
+                                                                                           unknown, unknown) ||
+        !core_arrays_present(inst, function, n_seed, seed, seed))
+        return 0;
+    for (i = 0; i < n_known; i++)
+        if (!known_valid(inst, function, known[i])) return 0;
+    for (i = 0; i < n_unknown; i++)
+        if (!unknown_valid(inst, function, unknown[i])) return 0;
+    for (i = 0; i < n_seed; i++)
+        if (!isfinite(seed[i])) {
+            log_error(inst, "%s: seed[%u] = %g is not a finite number", function, (unsigned)i, seed[i]);
+            return 0;
+        }
+    return 1;
+}
+
+/* NO_VARIABLE for a combination weighted by the seed. */
+#define NO_VARIABLE ((unsigned int)-1)
+static Status sensitivity_finite(Instance *inst, const char *function, double value, unsigned int unknown,
+                                 unsigned int known)
+{
+    if (isfinite(value)) return STATUS_OK;
+    /* in-range values can still overflow (huge parameters, 0 times inf) */
+    log_discard(inst, "%s: the derivative of %s with respect to %s is not finite for the current parameters, "
+                "inputs and states; no value handed out", function,
+                unknown == NO_VARIABLE ? "the seeded unknowns" : REAL_VARIABLES[unknown].name,
+                known == NO_VARIABLE ? "the seeded knowns" : REAL_VARIABLES[known].name);
+    return STATUS_DISCARD;
+}
+
+Status core_get_directional_derivative(Instance *inst, const char *function, const unsigned int unknown[],
+                                       size_t n_unknown, const unsigned int known[], size_t n_known,
+                                       const double seed[], double sensitivity[])
+{
+    double change[N_REAL];
+    Status status;
+    size_t i;
+    if (!derivative_arguments_valid(inst, function, unknown, n_unknown, known, n_known, seed, n_known) ||
+        !core_arrays_present(inst, function, n_unknown, sensitivity, sensitivity))
+        return STATUS_ERROR;
+    status = ensure_outputs(inst, function);
+    if (status != STATUS_OK) return status;
+    jacobian_times(inst, known, n_known, seed, change);
+    for (i = 0; i < n_unknown; i++) {
+        status = sensitivity_finite(inst, function, change[unknown[i]], unknown[i],
+                                    n_known == 1 ? known[0] : NO_VARIABLE);
+        if (status != STATUS_OK) return status;
+    }
+    for (i = 0; i < n_unknown; i++) sensitivity[i] = change[unknown[i]];
+    return STATUS_OK;
+}
+
+Status core_get_adjoint_derivative(Instance *inst, const char *function, const unsigned int unknown[],
+                                   size_t n_unknown, const unsigned int known[], size_t n_known,
+                                   const double seed[], double sensitivity[])
+{
+    double change[N_REAL], result;
+    const double unit = 1.0;
+    Status status;
+    size_t i, j;
+    if (!derivative_arguments_valid(inst, function, unknown, n_unknown, known, n_known, seed, n_unknown) ||
+        !core_arrays_present(inst, function, n_known, sensitivity, sensitivity))
+        return STATUS_ERROR;
+    status = ensure_outputs(inst, function);
+    if (status != STATUS_OK) return status;
+    for (j = 0; j < n_known; j++) { /* one column of J per known: the models are small */
+        jacobian_times(inst, &known[j], 1, &unit, change);
+        result = 0.0;
+        for (i = 0; i < n_unknown; i++) {
+            status = sensitivity_finite(inst, function, change[unknown[i]], unknown[i], known[j]);
+            if (status != STATUS_OK) return status;
+            result += seed[i] * change[unknown[i]];
+        }
+        status = sensitivity_finite(inst, function, result, NO_VARIABLE, known[j]);
+        if (status != STATUS_OK) return status;
+        sensitivity[j] = result;
+    }
+    return STATUS_OK;
+}

@@ -226,11 +226,9 @@ fmi2Status fmi2GetDirectionalDerivative(fmi2Component c, const fmi2ValueReferenc
                                         const fmi2ValueReference vKnown_ref[], size_t nKnown,
                                         const fmi2Real dvKnown[], fmi2Real dvUnknown[])
 {
-    Instance *inst = enter(c, FN_GET_DIRECTIONAL_DERIVATIVE);
-    (void)vUnknown_ref, (void)nUnknown, (void)vKnown_ref, (void)nKnown, (void)dvKnown, (void)dvUnknown;
-    if (!inst) return fmi2Error;
-    log_error(inst, "fmi2GetDirectionalDerivative: not provided (providesDirectionalDerivative is false)");
-    return fmi2Error;
+    CALL(FN_GET_DIRECTIONAL_DERIVATIVE,
+         core_get_directional_derivative(inst, NAME(FN_GET_DIRECTIONAL_DERIVATIVE), vUnknown_ref, nUnknown, vKnown_ref,
+                                         nKnown, dvKnown, dvUnknown));
 }
 
 /* ---------------------------------------------------------------- FMU state */

@@ -519,16 +519,28 @@ fmi3Status fmi3GetVariableDependencies(fmi3Instance instance, fmi3ValueReference
     return fmi3Error;
 }
 
+/* The seed and sensitivity arrays hold one value per scalar variable of their side. */
+static int derivative_sizes_match(Instance *inst, const char *function, size_t nSeed, size_t seeded, const char *side,
+                                  size_t nSensitivity, size_t sensed, const char *other)
+{
+    if (nSeed == seeded && nSensitivity == sensed) return 1;
+    log_error(inst, "%s: nSeed = %lu and nSensitivity = %lu, but there are %lu %s and %lu %s, all scalars "
+              "(nSeed must equal n%s, nSensitivity n%s)", function, (unsigned long)nSeed, (unsigned long)nSensitivity,
+              (unsigned long)seeded, side, (unsigned long)sensed, other, side[0] == 'k' ? "Knowns" : "Unknowns",
+              side[0] == 'k' ? "Unknowns" : "Knowns");
+    return 0;
+}
+
 fmi3Status fmi3GetDirectionalDerivative(fmi3Instance instance, const fmi3ValueReference unknowns[], size_t nUnknowns,
                                         const fmi3ValueReference knowns[], size_t nKnowns, const fmi3Float64 seed[],
                                         size_t nSeed, fmi3Float64 sensitivity[], size_t nSensitivity)
 {
     Instance *inst = enter(instance, FN_GET_DIRECTIONAL_DERIVATIVE, __func__);
-    (void)unknowns, (void)nUnknowns, (void)knowns, (void)nKnowns, (void)seed, (void)nSeed, (void)sensitivity;
-    (void)nSensitivity;
     if (!inst) return fmi3Error;
-    log_error(inst, "fmi3GetDirectionalDerivative: not provided (providesDirectionalDerivatives is false)");
-    return fmi3Error;
+    if (!derivative_sizes_match(inst, __func__, nSeed, nKnowns, "knowns", nSensitivity, nUnknowns, "unknowns"))
+        return fmi3Error;
+    return (fmi3Status)core_get_directional_derivative(inst, __func__, unknowns, nUnknowns, knowns, nKnowns, seed,
+                                                       sensitivity);
 }
 
 fmi3Status fmi3GetAdjointDerivative(fmi3Instance instance, const fmi3ValueReference unknowns[], size_t nUnknowns,
@@ -536,11 +548,11 @@ fmi3Status fmi3GetAdjointDerivative(fmi3Instance instance, const fmi3ValueRefere
                                     size_t nSeed, fmi3Float64 sensitivity[], size_t nSensitivity)
 {
     Instance *inst = enter(instance, FN_GET_ADJOINT_DERIVATIVE, __func__);
-    (void)unknowns, (void)nUnknowns, (void)knowns, (void)nKnowns, (void)seed, (void)nSeed, (void)sensitivity;
-    (void)nSensitivity;
     if (!inst) return fmi3Error;
-    log_error(inst, "fmi3GetAdjointDerivative: not provided (providesAdjointDerivatives is false)");
-    return fmi3Error;
+    if (!derivative_sizes_match(inst, __func__, nSeed, nUnknowns, "unknowns", nSensitivity, nKnowns, "knowns"))
+        return fmi3Error;
+    return (fmi3Status)core_get_adjoint_derivative(inst, __func__, unknowns, nUnknowns, knowns, nKnowns, seed,
+                                                   sensitivity);
 }
 
 /* ---------------------------------------------------------------- FMU state */

@@ -183,6 +183,15 @@ INTERNAL Status core_set_input_derivatives(Instance *inst, const char *function,
 INTERNAL Status core_get_output_derivatives(Instance *inst, const char *function, const unsigned int vr[], size_t n,
                                             const int32_t orders[], double value[]);
 INTERNAL Status core_do_step(Instance *inst, const char *function, double t, double H);
+/* Partial derivatives of state derivatives and continuous outputs (the unknowns) with respect to
+ * states and inputs (the knowns), from the model's exact Jacobian: directional, J seed (seed per
+ * known, sensitivity per unknown), and adjoint, seed^T J (seed per unknown, sensitivity per known). */
+INTERNAL Status core_get_directional_derivative(Instance *inst, const char *function, const unsigned int unknown[],
+                                                size_t n_unknown, const unsigned int known[], size_t n_known,
+                                                const double seed[], double sensitivity[]);
+INTERNAL Status core_get_adjoint_derivative(Instance *inst, const char *function, const unsigned int unknown[],
+                                            size_t n_unknown, const unsigned int known[], size_t n_known,
+                                            const double seed[], double sensitivity[]);
 INTERNAL const char *core_state_name(const Instance *inst, int state);
 INTERNAL void core_describe_states(const Instance *inst, unsigned mask, char *text, size_t size);
 
@@ -213,6 +222,11 @@ INTERNAL int model_outputs(const ModelConst *c, double t, const double *dx, doub
 /* rate[vr] = exact time derivative of every Real output vr; du are the input derivatives. */
 INTERNAL void model_output_rates(const ModelConst *c, double t, const double *real, const double *dx, const double *du,
                         double *rate);
+/* The exact Jacobian times a seed: for a change seed_x of the states and seed_u of the inputs at the
+ * state in real[] (dx its derivatives, NULL without states), the change ddx of the state
+ * derivatives and change[vr] of every calculated Real output. */
+INTERNAL void model_directional(const ModelConst *c, double t, const double *real, const double *dx,
+                                const double *seed_x, const double *seed_u, double *ddx, double *change);
 /* Advance the inputs over a step of H using their derivatives (and, for positions, velocities). */
 INTERNAL void model_advance_inputs(double *real, const double *du, double H);
 

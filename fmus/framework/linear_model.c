@@ -283,4 +283,24 @@ void linear_model_energies(const LinearModel *lm, const double *real, const doub
     if (rate_pot) *rate_pot = dpot;
 }
 
+void linear_model_directional(const LinearModel *lm, double d, const double *real, const double *seed_x,
+                              const double *seed_u, double *ddx, double *E_kin, double *E_pot)
+{
+    double kin = 0.0, pot = 0.0;
+    int i, j;
+    for (i = 0; i < LM_N; i++) {
+        double a = -d * seed_x[LM_N + i];
+        for (j = 0; j < LM_N; j++) {
+            a -= lm->stiffness[i][j] * seed_x[j];
+            kin += real[LM_N + i] * lm->M0[i][j] * seed_x[LM_N + j];
+            pot += (real[i] - lm->rest[i]) * lm->K0[i][j] * seed_x[j];
+        }
+        for (j = 0; j < N_FORCE_INPUTS; j++) a += lm->input_gain[i][j] * seed_u[j];
+        ddx[i] = seed_x[LM_N + i];
+        ddx[LM_N + i] = a;
+    }
+    *E_kin = kin;
+    *E_pot = pot;
+}
+
 #endif

@@ -35,6 +35,10 @@ INTERNAL void linear_model_step(const LinearModel *lm, double d, double H, const
 /* The linear model's energies at real[] = (q, v, ...) and their rates (dx = (v, a)); NULL skips one. */
 INTERNAL void linear_model_energies(const LinearModel *lm, const double *real, const double *dx, double *E_kin,
                            double *E_pot, double *rate_kin, double *rate_pot);
+/* The linear model's Jacobian times a seed (seed_x over (q, v), seed_u over the inputs) at
+ * real[] = (q, v, ...): the change ddx of (v, a) and of the energies. */
+INTERNAL void linear_model_directional(const LinearModel *lm, double d, const double *real, const double *seed_x,
+                                       const double *seed_u, double *ddx, double *E_kin, double *E_pot);
 #endif
 
 #endif

@@ -218,6 +218,11 @@ def generate_c(derivation: Derivation) -> GeneratedC:
                                   "NULL, NULL, &rate[VR_E_kin], &rate[VR_E_pot]" if has_linear else None)
     rates_body = _with_locals(real_locals, rates_body)
 
+    directional_body = _with_locals(
+        real_locals + [f"    const double acc{j} = dx[{n + j}] + c->d * s_{c.velocity};"
+                       for j, c in enumerate(spec.coordinates)],
+        _directional_lines(derivation, prepared, targets, values, has_linear))
+
     # ---- model_prepare
     prepare = [f"    c->p_{p.name} = real[VR_{p.name}];" for p in parameters]
     prepare.append("    c->d = real[VR_d];")
@@ -277,9 +282,61 @@ def generate_c(derivation: Derivation) -> GeneratedC:
     source = _SOURCE.format(
         identifier=spec.identifier, file=spec.path.name, prepare="\n".join(prepare), state_ok="\n".join(ok_body),
         explain="\n".join(explain), outputs="\n".join(outputs_body), rates="\n".join(rates_body),
+        directional="\n".join(directional_body),
         closed_form=("    if (!c->linear) return 0;\n    linear_model_step(&c->lin, c->d, H, u, x);\n    return 1;"
                      if has_linear else "    (void)c, (void)H, (void)u, (void)x;\n    return 0;"))
     return GeneratedC(header, source)
+
+
+def _directional_lines(derivation: Derivation, prepared, targets: list[str], values: list, has_linear: bool) -> list[str]:
+    """The body of model_directional: the exact Jacobian of (v, a) and of the outputs times a seed.
+    Differentiating M a = f + Q along the seed (dq, dv, du) gives M da = df + dQ - dM a, solved with
+    the same LDL^T factorization as the right-hand side; the damping adds -d dv."""
+    spec, n = derivation.spec, derivation.n
+    q, v = spec.q, spec.v
+    seed_q = [sp.Symbol(f"seed_x[{j}]", real=True) for j in range(n)]
+    seed_v = [sp.Symbol(f"seed_x[{n + j}]", real=True) for j in range(n)]
+    seed_u = [sp.Symbol(f"seed_u[{k}]", real=True) for k in range(len(derivation.inputs))]
+    acceleration = [sp.Symbol(f"acc{j}", real=True) for j in range(n)]  # of M a = f + Q, before damping
+
+    def along_seed(expr, with_inputs: bool = False):
+        change = sum((sp.diff(expr, qk) * dq for qk, dq in zip(q, seed_q)), sp.Integer(0))
+        change += sum((sp.diff(expr, vk) * dv for vk, dv in zip(v, seed_v)), sp.Integer(0))
+        if with_inputs:
+            change += sum((sp.diff(expr, F) * du for F, du in zip(derivation.inputs, seed_u)), sp.Integer(0))
+        return change
+
+    # the outputs: positions, velocities and energies depend on (q, v) only
+    lines, reduced, _ = _cse_lines([prepared(along_seed(e)) for e in values + [derivation.T, derivation.U]], "o")
+    lines += [f"    change[VR_{name}] = {c_expr(e)};" for name, e in zip(targets, reduced)]
+    lines += [f"    change[VR_E_kin] = {c_expr(reduced[-2])};", f"    change[VR_E_pot] = {c_expr(reduced[-1])};"]
+    if has_linear:
+        lines += ["    if (c->linear) {",
+                  "        linear_model_directional(&c->lin, c->d, real, seed_x, seed_u, ddx, &change[VR_E_kin], "
+                  "&change[VR_E_pot]);",
+                  "        change[VR_E] = change[VR_E_kin] + change[VR_E_pot];", "        return;", "    }"]
+    lines.append("    change[VR_E] = change[VR_E_kin] + change[VR_E_pot];")
+    # the accelerations
+    M = derivation.M
+    rhs = [along_seed(derivation.f[j] + derivation.Q[j], with_inputs=True)
+           - sum((along_seed(M[j, i]) * acceleration[i] for i in range(n)), sp.Integer(0)) for j in range(n)]
+    upper = [(i, j) for i in range(n) for j in range(i + 1)]
+    if all(M[i, j] == 0 for i, j in upper if i != j):
+        solve_lines, reduced, _ = _cse_lines([prepared(r / M[j, j]) for j, r in enumerate(rhs)], "w")
+        lines += solve_lines + [f"    const double a{j} = {c_expr(e)};" for j, e in enumerate(reduced)]
+    else:
+        mass_lines, reduced, _ = _cse_lines([prepared(M[i, j]) for i, j in upper] + [prepared(r) for r in rhs], "w")
+        lines += mass_lines
+        lines += [f"    const double b{j} = {c_expr(e)};" for j, e in enumerate(reduced[len(upper):])]
+        lines += _ldl_solve(n, dict(zip(upper, reduced[:len(upper)])))[0]  # its constants exist already
+    if any(re.search(r"\bu\[", line) for line in lines):  # the force inputs' values, in the order of u
+        values_of_u = ", ".join(f"real[VR_{F}]" for F in derivation.inputs)
+        lines.insert(0, f"    const double u[{len(derivation.inputs)}] = {{{values_of_u}}};")
+    lines += [f"    ddx[{j}] = seed_x[{n + j}];" for j in range(n)]
+    lines += [f"    ddx[{n + j}] = a{j} - c->d * seed_x[{n + j}];" for j in range(n)]
+    if any("goto singular" in line for line in lines):
+        lines += ["    return;", "singular:", f"    {{ int i; for (i = 0; i < {2 * n}; i++) ddx[i] = NAN; }}"]
+    return lines
 
 
 def _point_outputs(spec, positions, velocities):
@@ -512,6 +569,13 @@ void model_output_rates(const ModelConst *c, double t, const double *real, const
 {{
     (void)du;
 {rates}
+}}
+
+void model_directional(const ModelConst *c, double t, const double *real, const double *dx, const double *seed_x,
+                       const double *seed_u, double *ddx, double *change)
+{{
+    (void)seed_u;
+{directional}
 }}
 
 void model_advance_inputs(double *real, const double *du, double H) {{ advance_inputs_linearly(real, du, H); }}

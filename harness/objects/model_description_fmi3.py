@@ -108,9 +108,11 @@ def from_fmi2(fmi2_text: str, needs: dict[str, set[str]] | None = None) -> str:
         f'  description={quoteattr(root.get("description", ""))}',
         f'  generationTool={quoteattr(root.get("generationTool", ""))} variableNamingConvention="structured">',
         f'  <ModelExchange modelIdentifier="{identifier}" canGetAndSetFMUState="true" '
-        'canSerializeFMUState="true" needsCompletedIntegratorStep="false"/>',
+        'canSerializeFMUState="true" needsCompletedIntegratorStep="false"',
+        '    providesDirectionalDerivatives="true" providesAdjointDerivatives="true"/>',
         f'  <CoSimulation modelIdentifier="{identifier}" canGetAndSetFMUState="true" canSerializeFMUState="true"',
-        '    canHandleVariableCommunicationStepSize="true" maxOutputDerivativeOrder="1" providesIntermediateUpdate="true"/>']
+        '    canHandleVariableCommunicationStepSize="true" maxOutputDerivativeOrder="1" providesIntermediateUpdate="true"',
+        '    providesDirectionalDerivatives="true" providesAdjointDerivatives="true"/>']
     lines += _copied(root.find("UnitDefinitions"))
     types = root.find("TypeDefinitions")
     if types is not None and len(types):

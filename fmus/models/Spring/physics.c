@@ -44,34 +44,50 @@ int model_outputs(const ModelConst *c, double t, const double *dx, double *real)
     return ok;
 }
 
+/* The change of the outputs along a change (dpx, dpy) of b - a and (dwx, dwy) of v_b - v_a: the
+ * time rates for (dp, dw) = (v_b - v_a, their slopes), a directional derivative for a seed. */
+static void output_change(const ModelConst *c, const double *real, double dpx, double dpy, double dwx, double dwy,
+                          double *change)
+{
+    const double px = real[VR_b_x] - real[VR_a_x], py = real[VR_b_y] - real[VR_a_y];
+    const double wx = real[VR_b_vx] - real[VR_a_vx], wy = real[VR_b_vy] - real[VR_a_vy];
+    const double r = hypot(px, py);
+    double fx = 0.0, fy = 0.0, energy = 0.0;
+    if (r > 0.0) {
+        const double ex = px / r, ey = py / r;
+        const double dr = dpx * ex + dpy * ey;
+        const double dex = (dpx - dr * ex) / r, dey = (dpy - dr * ey) / r;
+        const double s = wx * ex + wy * ey, ds = dwx * ex + dwy * ey + wx * dex + wy * dey;
+        const double magnitude = c->k * (r - c->l0) + c->c * s;
+        const double dmagnitude = c->k * dr + c->c * ds;
+        fx = dmagnitude * ex + magnitude * dex;
+        fy = dmagnitude * ey + magnitude * dey;
+        energy = c->k * (r - c->l0) * dr;
+    } else if (c->l0 == 0.0) {
+        fx = c->k * dpx; /* Fa = k d near r = 0 */
+        fy = c->k * dpy;
+    }
+    change[VR_Fa_x] = fx;
+    change[VR_Fa_y] = fy;
+    change[VR_Fb_x] = -fx;
+    change[VR_Fb_y] = -fy;
+    change[VR_E_pot] = energy;
+}
+
 void model_output_rates(const ModelConst *c, double t, const double *real, const double *dx, const double *du,
                         double *rate)
 {
-    const double px = real[VR_b_x] - real[VR_a_x], py = real[VR_b_y] - real[VR_a_y];
-    const double vx = real[VR_b_vx] - real[VR_a_vx], vy = real[VR_b_vy] - real[VR_a_vy];
-    const double ax = du[IN_BVX] - du[IN_AVX], ay = du[IN_BVY] - du[IN_AVY];
-    const double r = hypot(px, py);
-    double fx = 0.0, fy = 0.0, energy = 0.0;
-    (void)dx;
-    if (r > 0.0) {
-        const double ex = px / r, ey = py / r;
-        const double r_rate = vx * ex + vy * ey;
-        const double ex_rate = (vx - r_rate * ex) / r, ey_rate = (vy - r_rate * ey) / r;
-        const double s = r_rate, s_rate = ax * ex + ay * ey + vx * ex_rate + vy * ey_rate;
-        const double magnitude = c->k * (r - c->l0) + c->c * s;
-        const double magnitude_rate = c->k * r_rate + c->c * s_rate;
-        fx = magnitude_rate * ex + magnitude * ex_rate;
-        fy = magnitude_rate * ey + magnitude * ey_rate;
-        energy = c->k * (r - c->l0) * r_rate;
-    } else if (c->l0 == 0.0) {
-        fx = c->k * vx; /* Fa = k d near r = 0 */
-        fy = c->k * vy;
-    }
-    rate[VR_Fa_x] = fx;
-    rate[VR_Fa_y] = fy;
-    rate[VR_Fb_x] = -fx;
-    rate[VR_Fb_y] = -fy;
-    rate[VR_E_pot] = energy;
+    (void)t, (void)dx;
+    output_change(c, real, real[VR_b_vx] - real[VR_a_vx], real[VR_b_vy] - real[VR_a_vy], du[IN_BVX] - du[IN_AVX],
+                  du[IN_BVY] - du[IN_AVY], rate);
+}
+
+void model_directional(const ModelConst *c, double t, const double *real, const double *dx, const double *seed_x,
+                       const double *seed_u, double *ddx, double *change)
+{
+    (void)t, (void)dx, (void)seed_x, (void)ddx;
+    output_change(c, real, seed_u[IN_BX] - seed_u[IN_AX], seed_u[IN_BY] - seed_u[IN_AY], seed_u[IN_BVX] - seed_u[IN_AVX],
+                  seed_u[IN_BVY] - seed_u[IN_AVY], change);
 }
 
 void model_advance_inputs(double *real, const double *du, double H)
