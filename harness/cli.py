@@ -54,6 +54,12 @@ def system_inputs(system: str) -> tuple[str | Path, ...]:
     return (system, path.parent) if path.suffix.lower() == ".ssd" else (system,)
 
 
+def component_files(system_file: str, system) -> tuple[str | Path, ...]:
+    """What a loaded system reads: its own inputs and the FMU of every component, which an output
+    must not replace either."""
+    return (*system_inputs(system_file), *(component.fmu for component in system.components))
+
+
 def command_simulate(args: argparse.Namespace) -> int:
     from harness.fmi.fmus import locate_fmu
     from harness.fmi.simulation import simulate
@@ -133,7 +139,7 @@ def command_derive(args: argparse.Namespace) -> int:
         derived = derive_fmu(args.object_file, output_folder(args.out, "--out"), report)
     finally:
         report.close()
-    print(f"wrote {derived.path}")
+    print(f"wrote {derived.path} (FMI 2.0) and {derived.fmi3_path} (FMI 3.0)")
     return 0
 
 
@@ -151,6 +157,7 @@ def command_run(args: argparse.Namespace) -> int:
     from harness.output import csv_header, output_file, written
     out = output_file(args.out, "--out", system_inputs(args.system))
     with load_system(args.system) as system:
+        out = output_file(out, "--out", component_files(args.system, system))
         stop = args.stop if args.stop is not None else system.stop
         step = args.step if args.step is not None else system.step
         if stop is None or step is None:
@@ -254,6 +261,8 @@ def command_plan(args: argparse.Namespace) -> int:
     out = output_file(args.out, "--out", system_inputs(args.scene)) if args.out else None
     build_fmus()
     with load_system(args.scene) as system:
+        if out is not None:
+            out = output_file(out, "--out", component_files(args.scene, system))
         tolerance = args.tolerance
         if args.pixels is not None:
             system.accuracy = {"pixels": args.pixels}
@@ -345,7 +354,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--scheduler", metavar="ADDRESS", help="plan on a Dask cluster ('local' or HOST:PORT)")
     p.set_defaults(run=command_plan)
 
-    p = sub.add_parser("derive", help="an object file (T, U, points, forces) -> DIR/<identifier>.fmu")
+    p = sub.add_parser("derive", help="an object file (T, U, points, forces) -> DIR/<identifier>.fmu (FMI 2.0) "
+                                       "and DIR/fmi3/<identifier>.fmu (FMI 3.0)")
     p.add_argument("object_file", help="the object's .toml file")
     p.add_argument("--out", default=".", help="folder for the FMU (default: the current one)")
     p.add_argument("--quiet", action="store_true", help="no progress lines on stderr")

@@ -92,8 +92,14 @@ MISUSE: dict = {
                                                     ctypes.byref(ctypes.c_void_p())), "size = 10"),
     "garbage serialized state": (lambda f: f.call("fmi2DeSerializeFMUstate", ctypes.create_string_buffer(448), 448,
                                                   ctypes.byref(ctypes.c_void_p())), "corrupt"),
-    "directional derivative": (lambda f: f.call("fmi2GetDirectionalDerivative", None, 0, None, 0, None, None),
-                               "not provided"),
+    "directional derivative with respect to a parameter": (
+        lambda f: f.call("fmi2GetDirectionalDerivative", (ctypes.c_uint * 1)(3), 1, (ctypes.c_uint * 1)(10), 1,
+                         (D * 1)(1.0), (D * 1)()), "known L (value reference 10) is not a continuous state or a Real input"),
+    "directional derivative with a NaN seed": (
+        lambda f: f.call("fmi2GetDirectionalDerivative", (ctypes.c_uint * 1)(3), 1, (ctypes.c_uint * 1)(0), 1,
+                         (D * 1)(math.nan), (D * 1)()), "seed[0] = nan is not a finite number"),
+    "directional derivative without arrays": (
+        lambda f: f.call("fmi2GetDirectionalDerivative", None, 1, None, 1, None, None), "NULL array"),
 }
 AFTER_INIT: dict = {
     "step of zero length": (lambda f: f.call("fmi2DoStep", D(0.0), D(0.0), 1), "communicationStepSize = 0"),
@@ -110,7 +116,9 @@ AFTER_INIT: dict = {
 
 
 # Getters are only legal after initialization: their argument errors are checked there.
-for _case in ("Integer value reference unknown", "Boolean variable", "NULL reference array", "directional derivative"):
+for _case in ("Integer value reference unknown", "Boolean variable", "NULL reference array",
+              "directional derivative with respect to a parameter", "directional derivative with a NaN seed",
+              "directional derivative without arrays"):
     AFTER_INIT[_case] = MISUSE.pop(_case)
 
 

@@ -66,12 +66,15 @@ def fmutool(path: Path) -> subprocess.CompletedProcess:
                           timeout=300)
 
 
+@pytest.mark.parametrize("version", [2, 3])
 @pytest.mark.parametrize("name", FMU_NAMES)
-def test_fmutool_check_finds_no_errors(fmu_paths, name):
-    result = fmutool(fmu_paths[name])
+def test_fmutool_check_finds_no_errors(fmu_paths, name, version):
+    path = fmu_paths[name] if version == 2 else build_dir() / "fmus" / "fmi3" / f"{name}.fmu"
+    result = fmutool(path)
     output = result.stdout + result.stderr
     assert result.returncode == 0, output
-    assert "compliant with FMI-2.0" in output and "No semantic error" in output, output
+    assert f"compliant with FMI-{version}.0" in output and f"No semantic error against the FMI-{version}" in output, \
+        output
     assert "ERROR" not in output
 
 

@@ -542,3 +542,33 @@ def test_model_exchange_at_the_singularity_discards_without_nan(open_fmu):
     derivatives = (ctypes.c_double * 4)(7.0, 7.0, 7.0, 7.0)
     assert fmu.call("fmi2GetDerivatives", derivatives, 4) == DISCARD
     assert all(math.isfinite(v) for v in derivatives)
+
+
+def test_a_restored_state_with_a_non_finite_history_is_refused(open_fmu):
+    """The Adams-Bashforth history belongs to the state: a NaN in it (valid checksum) is refused when
+    the state is deserialized, not found by the next step."""
+    import struct
+    fmu = open_fmu("SimplePendulum")
+    fmu.set(solver="ab6", h=0.01)
+    fmu.initialize()
+    for k in range(3):
+        assert fmu.do_step(0.1 * k, 0.1) == OK
+    serialized = bytearray(fmu.serialize(fmu.get_state()))
+    # the layout of SimState after the 64-byte header: time, last successful time, Reals, Integers
+    # (int32), input derivatives, machine state (int32), three counters, then the history
+    variables = fmu.model_description.modelVariables
+    n_real = sum(v.type == "Real" for v in variables)
+    n_integer = sum(v.type in ("Integer", "Enumeration") for v in variables)
+    n_input = sum(v.causality == "input" for v in variables)
+    n_states = fmu.model_description.numberOfContinuousStates
+
+    def aligned(offset: int) -> int:
+        return (offset + 7) // 8 * 8
+    history = aligned(aligned(64 + 16 + 8 * n_real + 4 * n_integer) + 8 * n_input + 4) + 24
+    for k in range(6 * n_states):
+        struct.pack_into("<d", serialized, history + 8 * k, math.nan)
+    struct.pack_into("<Q", serialized, len(serialized) - 8, _fnv1a64(bytes(serialized[:-8])))
+    with pytest.raises(Exception):
+        fmu.deserialize(bytes(serialized))
+    assert "Adams-Bashforth history holds a non-finite value" in fmu.last_message()
+    assert fmu.do_step(0.3, 0.1) == OK

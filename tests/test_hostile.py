@@ -857,3 +857,17 @@ def test_a_coupled_plan_whose_reference_cannot_be_computed(workspace):
     path.write_text(json.dumps(scene))
     outcome = cli(["plan", str(path), "--tolerance", "0.001", "--workers", "1"], workspace)
     assert outcome.code == 2 and "monolithic reference of this scene" in outcome.stderr, outcome
+
+
+@pytest.mark.parametrize("command", [["run"], ["plan", "--tolerance", "0.01"]])
+def test_an_output_never_replaces_an_fmu_the_scene_names(workspace, command):
+    """The scene loads its FMU from a file whose name looks like an output; writing there is refused
+    and the FMU stays as it was."""
+    fmu = workspace / f"pend{next(counter)}.csv"
+    fmu.write_bytes((build_dir() / "fmus" / "SimplePendulum.fmu").read_bytes())
+    scene = workspace / f"scene{next(counter)}.json"
+    scene.write_text(json.dumps({"name": "s", "stop": 1.0, "step": 0.1, "components": {"p": {"fmu": str(fmu)}},
+                                 "connections": []}))
+    outcome = cli([command[0], str(scene), *command[1:], "--out", str(fmu)], workspace)
+    assert outcome.code == 2 and "is this command's input" in outcome.stderr, outcome
+    assert zipfile.is_zipfile(fmu)

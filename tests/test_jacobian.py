@@ -176,10 +176,11 @@ def test_the_exact_jacobian_equals_central_differences(extracted, name, model, v
         instance.free()
 
 
-def test_co_simulation_gives_the_jacobian_of_model_exchange(extracted):
-    """At the same state, the outputs' derivatives with respect to the inputs and states do not depend
-    on the interface."""
-    name = "DoublePendulum"
+@pytest.mark.parametrize("name", ["DoublePendulum", "SpringPendulum", "Spring"])
+def test_co_simulation_gives_the_jacobian_of_model_exchange(extracted, name):
+    """After a step and a new input, Co-Simulation's Jacobian is taken at the inputs as they are now
+    (its outputs still belong to the end of the step): equal to Model Exchange's at the same state,
+    time and inputs."""
     path, folder = extracted[name, 2]
     md = read_model_description(str(path))
     start = moved_start(md, 3)
@@ -192,12 +193,46 @@ def test_co_simulation_gives_the_jacobian_of_model_exchange(extracted):
     cs.setReal([me.vr[k] for k in start], list(start.values()))
     cs.exitInitializationMode()
     try:
-        knowns = me.states + me.inputs
-        for k in knowns:
+        cs.doStep(0.0, 0.1)
+        if me.states:
+            me.fmu.setTime(0.1)
+            me.set_states(cs.getReal(me.states))
+        changed = [v + 10.0 for v in cs.getReal(me.inputs)]
+        cs.setReal(me.inputs, changed)
+        me.set(me.inputs, changed)
+        for k in me.states + me.inputs:
             assert cs.getDirectionalDerivative(me.outputs + me.derivatives, [k], [1.0]) == \
-                me.fmu.getDirectionalDerivative(me.outputs + me.derivatives, [k], [1.0])
+                me.fmu.getDirectionalDerivative(me.outputs + me.derivatives, [k], [1.0]), k
     finally:
         me.free()
+        cs.terminate()
+        cs.freeInstance()
+
+
+def test_a_co_simulation_input_that_makes_the_spring_singular_gives_no_jacobian(extracted):
+    """l0 > 0 and both ends moved together after initialization: the direction of the force is
+    undefined, and so is its derivative (a discard, as in Model Exchange)."""
+    path, folder = extracted["Spring", 2]
+    md = read_model_description(str(path))
+    vr = {v.name: v.valueReference for v in md.modelVariables}
+    log = Log()
+    callbacks = fmi2CallbackFunctions()
+    callbacks.logger = fmi2CallbackLoggerTYPE(log)
+    callbacks.allocateMemory = defaultCallbacks.allocateMemory
+    callbacks.freeMemory = defaultCallbacks.freeMemory
+    cs = FMU2Slave(guid=md.guid, unzipDirectory=folder, modelIdentifier=md.coSimulation.modelIdentifier,
+                   instanceName="cs")
+    cs.instantiate(callbacks=callbacks)
+    cs.setupExperiment(startTime=0.0)
+    cs.enterInitializationMode()
+    cs.exitInitializationMode()
+    try:
+        cs.setReal([vr[n] for n in ("a_x", "a_y", "b_x", "b_y")], [0.3, 0.3, 0.3, 0.3])
+        out = reals([7.0])
+        assert raw_status(cs, "fmi2GetDirectionalDerivative", refs([vr["Fa_x"]]), 1, refs([vr["a_x"]]), 1,
+                          reals([1.0]), out) == 2 and out[0] == 7.0
+        assert "undefined in the current (singular) configuration" in log.messages[-1]
+    finally:
         cs.terminate()
         cs.freeInstance()
 

@@ -98,6 +98,13 @@ def test_derive_builds_a_valid_fmu_that_moves_as_the_numeric_route_says(tmp_path
             "n_rhs"} <= names
     proof = numeric_route_agreement(fmu, object_file_in(fmu), samples=4)
     assert proof.passed, proof.detail
+    # the FMI 3.0 FMU beside it: valid, and the same numbers bit for bit
+    import fmpy
+    fmi3 = tmp_path / "fmi3" / "CartPendulumTest.fmu"
+    assert validate_fmu(str(fmi3)) == [] and read_model_description(str(fmi3)).fmiVersion == "3.0"
+    runs = [fmpy.simulate_fmu(str(path), stop_time=2.0, output_interval=0.1, start_values={"push_x": 0.5})
+            for path in (fmu, fmi3)]
+    assert all(np.array_equal(runs[0][name], runs[1][name]) for name in ("x", "phi", "bob_x", "E"))
 
 
 @pytest.mark.parametrize("name", object_names())
@@ -216,3 +223,20 @@ def test_display_simplification_is_cut_off_by_its_clock_and_zero_tests_evaluate(
     assert vanishes((sp.sin(x) ** 2 + sp.cos(x) ** 2 - 1) * slow, spec)
     assert not vanishes(sp.sin(x) - x, spec)          # zero at x = 0 only
     assert not vanishes(sp.sqrt(x - 10), spec)        # cannot be evaluated as a real number
+
+
+def test_a_derivation_that_expands_without_end_stops_at_its_time_limit(tmp_path, monkeypatch):
+    """A 36th power of a sum expands into tens of thousands of terms: generation stops at its clock
+    (300 s; 2 s here) with one line naming the file, and leaves no timer behind."""
+    import signal
+
+    import harness.objects.generate as generate_module
+    from harness.objects.generate import generate
+    monkeypatch.setattr(generate_module, "GENERATION_SECONDS", 2.0)
+    text = object_file("SimplePendulum").read_text().replace('U = "-m*g*L*cos(phi)"', 'U = "m*g*L*(phi+L+m+g)**36"')
+    path = write(tmp_path, text, "SimplePendulum.toml")
+    with pytest.raises(ObjectFileError) as refused:
+        generate(path, tmp_path / "out")
+    assert "deriving and generating the equations took over 2 s" in str(refused.value)
+    assert str(refused.value).count("\n") == 0 and str(path) in str(refused.value)
+    assert signal.getitimer(signal.ITIMER_REAL)[0] == 0

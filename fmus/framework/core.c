@@ -572,6 +572,10 @@ static int restored_state_valid(Instance *inst, const char *function, const SimS
         log_error(inst, "%s: the FMU state's integrator memory is invalid", function);
         return 0;
     }
+    if (first_non_finite(&s->integrator.ab_history[0][0], AB_MAX_STEPS * STATE_SLOTS) >= 0) {
+        log_error(inst, "%s: the FMU state's Adams-Bashforth history holds a non-finite value", function);
+        return 0;
+    }
     if (model_prepare(s->real, s->integer, &constants, message, sizeof message)) {
         log_error(inst, "%s: %s", function, message);
         return 0;
@@ -905,13 +909,44 @@ static int unknown_valid(Instance *inst, const char *function, unsigned int vr)
     return 0;
 }
 
+/* The variables at which the Jacobian is taken: the states, parameters and the inputs as they are now,
+ * with the derivatives and outputs computed for them (in Co-Simulation the outputs the importer reads
+ * belong to the end of the last step, whatever inputs were set since). Discard where they are undefined. */
+static Status linearization_point(Instance *inst, const char *function, double point[N_REAL])
+{
+    double *dx = NULL;
+    int bad;
+    if (!ensure_constants(inst, function)) return STATUS_ERROR;
+    memcpy(point, inst->s.real, N_REAL * sizeof *point);
+#if N_STATES > 0
+    {
+        double u[INPUT_SLOTS];
+        gather_inputs(inst, u);
+        dx = point + N_STATES;
+        model_derivatives(&inst->constants, inst->s.time, point, u, dx);
+    }
+#endif
+    if (!model_outputs(&inst->constants, inst->s.time, dx, point)) {
+        log_discard(inst, "%s: the outputs are undefined in the current (singular) configuration, and so are "
+                    "their derivatives", function);
+        return STATUS_DISCARD;
+    }
+    bad = first_non_finite(point, N_REAL);
+    if (bad >= 0) {
+        log_discard(inst, "%s: %s is not finite for the current inputs and states; no derivative handed out",
+                    function, REAL_VARIABLES[bad].name);
+        return STATUS_DISCARD;
+    }
+    return STATUS_OK;
+}
+
 /* Jacobian times the seed (by value reference of the knowns) into change[N_REAL] (by value reference
- * of the unknowns); the outputs must be valid. */
-static void jacobian_times(Instance *inst, const unsigned int known[], size_t nknown, const double seed[],
-                           double change[])
+ * of the unknowns), at `point` (see linearization_point). */
+static void jacobian_times(Instance *inst, const double point[N_REAL], const unsigned int known[], size_t nknown,
+                           const double seed[], double change[])
 {
     double seed_x[STATE_SLOTS] = {0}, seed_u[INPUT_SLOTS] = {0}, ddx[STATE_SLOTS] = {0};
-    const double *dx = N_STATES > 0 ? inst->s.real + N_STATES : NULL;
+    const double *dx = N_STATES > 0 ? point + N_STATES : NULL;
     size_t k;
     int i;
     for (k = 0; k < nknown; k++) {
@@ -919,7 +954,7 @@ static void jacobian_times(Instance *inst, const unsigned int known[], size_t nk
         else seed_u[input_index(known[k])] += seed[k];
     }
     memset(change, 0, N_REAL * sizeof *change);
-    model_directional(&inst->constants, inst->s.time, inst->s.real, dx, seed_x, seed_u, ddx, change);
+    model_directional(&inst->constants, inst->s.time, point, dx, seed_x, seed_u, ddx, change);
     for (i = 0; i < N_STATES; i++) {
         change[i] = seed_x[i];
         change[N_STATES + i] = ddx[i];
@@ -965,15 +1000,15 @@ Status core_get_directional_derivative(Instance *inst, const char *function, con
                                        size_t n_unknown, const unsigned int known[], size_t n_known,
                                        const double seed[], double sensitivity[])
 {
-    double change[N_REAL];
+    double change[N_REAL], point[N_REAL];
     Status status;
     size_t i;
     if (!derivative_arguments_valid(inst, function, unknown, n_unknown, known, n_known, seed, n_known) ||
         !core_arrays_present(inst, function, n_unknown, sensitivity, sensitivity))
         return STATUS_ERROR;
-    status = ensure_outputs(inst, function);
+    status = linearization_point(inst, function, point);
     if (status != STATUS_OK) return status;
-    jacobian_times(inst, known, n_known, seed, change);
+    jacobian_times(inst, point, known, n_known, seed, change);
     for (i = 0; i < n_unknown; i++) {
         status = sensitivity_finite(inst, function, change[unknown[i]], unknown[i],
                                     n_known == 1 ? known[0] : NO_VARIABLE);
@@ -987,17 +1022,17 @@ Status core_get_adjoint_derivative(Instance *inst, const char *function, const u
                                    size_t n_unknown, const unsigned int known[], size_t n_known,
                                    const double seed[], double sensitivity[])
 {
-    double change[N_REAL], result;
+    double change[N_REAL], point[N_REAL], result;
     const double unit = 1.0;
     Status status;
     size_t i, j;
     if (!derivative_arguments_valid(inst, function, unknown, n_unknown, known, n_known, seed, n_unknown) ||
         !core_arrays_present(inst, function, n_known, sensitivity, sensitivity))
         return STATUS_ERROR;
-    status = ensure_outputs(inst, function);
+    status = linearization_point(inst, function, point);
     if (status != STATUS_OK) return status;
     for (j = 0; j < n_known; j++) { /* one column of J per known: the models are small */
-        jacobian_times(inst, &known[j], 1, &unit, change);
+        jacobian_times(inst, point, &known[j], 1, &unit, change);
         result = 0.0;
         for (i = 0; i < n_unknown; i++) {
             status = sensitivity_finite(inst, function, change[unknown[i]], unknown[i], known[j]);

@@ -21,6 +21,7 @@ from pathlib import Path
 from harness.errors import HarnessError
 from harness.objects.generate import no_progress, generate
 from harness.objects.model_description import SOURCE_FILES
+from harness.objects.model_description_fmi3 import build_description
 from harness.objects.object_file import ObjectFileError, read_object_file
 from harness.output import writable_file, written
 from harness.processes import run_program
@@ -35,12 +36,18 @@ C_FLAGS = ("-std=c99", "-O3", "-DNDEBUG", "-fPIC", "-fvisibility=hidden", "-Wall
 @dataclass
 class DerivedFmu:
     identifier: str
-    path: Path
+    path: Path       # FMI 2.0: <out>/<identifier>.fmu
+    fmi3_path: Path  # FMI 3.0: <out>/fmi3/<identifier>.fmu, as the build lays them out
+
+
+# What each FMI version's FMU carries besides the model: its API layer (source, header) and platform folder.
+LAYERS = {2: ("fmi2_functions.c", "fmi2_api.h", "linux64"), 3: ("fmi3_functions.c", "fmi3_api.h", "x86_64-linux")}
+CORE_SOURCES = SOURCE_FILES[1:-1]  # between the FMI 2.0 layer and physics.c
 
 
 def derive_fmu(object_file: str | Path, out: str | Path, progress: Callable[[str], None] = no_progress) -> DerivedFmu:
-    """Builds out/<identifier>.fmu from an object file. Raises HarnessError with one line. `progress`
-    is told each stage as it begins."""
+    """Builds out/<identifier>.fmu (FMI 2.0) and out/fmi3/<identifier>.fmu (FMI 3.0) from an object
+    file. Raises HarnessError with one line. `progress` is told each stage as it begins."""
     out = Path(out)
     compiler = shlex.split(os.environ.get("CC", "cc"))
     if shutil.which(compiler[0]) is None:
@@ -49,7 +56,9 @@ def derive_fmu(object_file: str | Path, out: str | Path, progress: Callable[[str
         identifier = read_object_file(object_file).identifier
     except ObjectFileError as error:
         raise HarnessError(str(error)) from None
-    writable_file(out / f"{identifier}.fmu", "--out")  # refused before the work, not after it
+    targets = {2: out / f"{identifier}.fmu", 3: out / "fmi3" / f"{identifier}.fmu"}
+    for target in targets.values():
+        writable_file(target, "--out")  # refused before the work, not after it
     with tempfile.TemporaryDirectory(prefix="derive-") as scratch:
         work = Path(scratch)
         try:
@@ -63,33 +72,45 @@ def derive_fmu(object_file: str | Path, out: str | Path, progress: Callable[[str
         if result.returncode != 0:
             raise HarnessError(f"{object_file}: the generated model description was refused: "
                                f"{result.stderr.strip().splitlines()[-1]}")
-        fmu = work / "fmu"
-        sources = fmu / "sources"
-        binaries = fmu / "binaries" / "linux64"
-        for directory in (sources, binaries, fmu / "documentation"):
-            directory.mkdir(parents=True)
-        for name in SOURCE_FILES[:-1] + FRAMEWORK_HEADERS:
-            shutil.copy(FRAMEWORK / name, sources / name)
-        for name in ("physics.c", "physics.h", "model_description.h"):
-            shutil.copy(folder / name, sources / name)
-        shutil.copy(object_file, sources / f"{generated.identifier}.toml")
-        shutil.copy(folder / "modelDescription.xml", fmu / "modelDescription.xml")
-        shutil.copy(folder / "documentation" / "index.html", fmu / "documentation" / "index.html")
-        library = binaries / f"{generated.identifier}.so"
-        command = [*compiler, *C_FLAGS, "-shared", f"-I{sources}", "-o", str(library),
-                   *(str(sources / name) for name in SOURCE_FILES), "-lm"]
         progress("compiling")
-        result = run_program(command)
-        if result.returncode != 0:
-            first = next((line for line in result.stderr.splitlines() if "error" in line), result.stderr.strip())
-            raise HarnessError(f"{object_file}: compiling the generated C failed: {first}")
-        out.mkdir(parents=True, exist_ok=True)
-        partial = work / f"{generated.identifier}.fmu"
-        with zipfile.ZipFile(partial, "w", zipfile.ZIP_DEFLATED) as archive:
-            for path in sorted(fmu.rglob("*")):
-                if path.is_file():
-                    archive.write(path, path.relative_to(fmu).as_posix())
-        target = out / f"{generated.identifier}.fmu"
-        with written(target, binary=True) as sink:  # the FMU appears whole or not at all
-            sink.write(partial.read_bytes())
-    return DerivedFmu(generated.identifier, target)
+        packed = {version: _package(version, compiler, object_file, generated.identifier, folder, work)
+                  for version in targets}
+        for version, target in targets.items():
+            target.parent.mkdir(parents=True, exist_ok=True)
+            with written(target, binary=True) as sink:  # each FMU appears whole or not at all
+                sink.write(packed[version].read_bytes())
+    return DerivedFmu(generated.identifier, targets[2], targets[3])
+
+
+def _package(version: int, compiler: list[str], object_file, identifier: str, folder: Path, work: Path) -> Path:
+    """The FMU of one FMI version, packed in work/: the model description, the binary, the sources
+    (with buildDescription.xml for FMI 3.0), the object file and the documentation."""
+    layer_source, layer_header, platform = LAYERS[version]
+    fmu = work / f"fmi{version}"
+    sources = fmu / "sources"
+    binaries = fmu / "binaries" / platform
+    for directory in (sources, binaries, fmu / "documentation"):
+        directory.mkdir(parents=True)
+    compiled = (layer_source, *CORE_SOURCES, "physics.c")
+    for name in (layer_source, *CORE_SOURCES, layer_header, *FRAMEWORK_HEADERS[1:]):
+        shutil.copy(FRAMEWORK / name, sources / name)
+    for name in ("physics.c", "physics.h", "model_description.h"):
+        shutil.copy(folder / name, sources / name)
+    shutil.copy(object_file, sources / f"{identifier}.toml")
+    description = folder / "modelDescription.xml" if version == 2 else folder / "fmi3" / "modelDescription.xml"
+    shutil.copy(description, fmu / "modelDescription.xml")
+    if version == 3:
+        (sources / "buildDescription.xml").write_text(build_description(identifier, compiled))
+    shutil.copy(folder / "documentation" / "index.html", fmu / "documentation" / "index.html")
+    library = binaries / f"{identifier}.so"
+    result = run_program([*compiler, *C_FLAGS, "-shared", f"-I{sources}", "-o", str(library),
+                          *(str(sources / name) for name in compiled), "-lm"])
+    if result.returncode != 0:
+        first = next((line for line in result.stderr.splitlines() if "error" in line), result.stderr.strip())
+        raise HarnessError(f"{object_file}: compiling the generated C failed: {first}")
+    partial = work / f"{identifier}-fmi{version}.fmu"
+    with zipfile.ZipFile(partial, "w", zipfile.ZIP_DEFLATED) as archive:
+        for path in sorted(fmu.rglob("*")):
+            if path.is_file():
+                archive.write(path, path.relative_to(fmu).as_posix())
+    return partial

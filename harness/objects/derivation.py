@@ -15,6 +15,8 @@ from __future__ import annotations
 
 import signal
 import threading
+import time
+from contextlib import contextmanager
 from dataclasses import dataclass
 
 import numpy as np
@@ -112,6 +114,7 @@ def derive(spec: ObjectSpec) -> Derivation:
 # takes half a minute, and its size does not tell. So simplification for display runs on a clock,
 # and zero tests are done by evaluation.
 SIMPLIFY_SECONDS = 60.0  # for one documentation page; the project's objects need under 15
+GENERATION_SECONDS = 300.0  # deriving and generating one object, that page included; the project's need under 20
 ZERO_TEST_POINTS = 4
 
 
@@ -120,17 +123,20 @@ class _OutOfTime(Exception):
 
 
 def readable(expressions: list, seconds: float = SIMPLIFY_SECONDS) -> list[sp.Expr]:
-    """The expressions simplified, in order, while `seconds` last; the rest as they are. The clock is
-    a timer signal, so this simplifies only in the main thread (elsewhere all are returned as they
-    are)."""
+    """The expressions simplified, in order, while `seconds` last (or an outer time_limit, if that ends
+    first); the rest as they are. The clock is a timer signal, so this simplifies only in the main
+    thread (elsewhere all are returned as they are)."""
     expressions = [sp.sympify(e) for e in expressions]
     if threading.current_thread() is not threading.main_thread():
         return expressions
 
     def out_of_time(signum, frame):
         raise _OutOfTime
+    outer = signal.getitimer(signal.ITIMER_REAL)[0]
+    budget = min(seconds, outer) if outer > 0 else seconds
+    started = time.monotonic()
     previous = signal.signal(signal.SIGALRM, out_of_time)
-    signal.setitimer(signal.ITIMER_REAL, seconds)
+    signal.setitimer(signal.ITIMER_REAL, budget)
     result = []
     try:
         for expr in expressions:
@@ -140,7 +146,30 @@ def readable(expressions: list, seconds: float = SIMPLIFY_SECONDS) -> list[sp.Ex
     finally:
         signal.setitimer(signal.ITIMER_REAL, 0)
         signal.signal(signal.SIGALRM, previous)
+        if outer > 0:  # the outer clock goes on where it was
+            signal.setitimer(signal.ITIMER_REAL, max(1e-3, outer - (time.monotonic() - started)))
     return result
+
+
+@contextmanager
+def time_limit(seconds: float, message: str):
+    """Raises ObjectFileError(message) when the block takes longer than `seconds` (main thread only:
+    a timer signal interrupts SymPy, which has no bound on its work of its own)."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+
+    def out_of_time(signum, frame):
+        raise _OutOfTime
+    previous = signal.signal(signal.SIGALRM, out_of_time)
+    signal.setitimer(signal.ITIMER_REAL, seconds)
+    try:
+        yield
+    except _OutOfTime:
+        raise ObjectFileError(message) from None
+    finally:
+        signal.setitimer(signal.ITIMER_REAL, 0)
+        signal.signal(signal.SIGALRM, previous)
 
 
 def vanishes(expr, spec: ObjectSpec) -> bool:

@@ -12,7 +12,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from harness.objects.c_code import generate_c
-from harness.objects.derivation import Derivation, derive
+from harness.objects.derivation import GENERATION_SECONDS, Derivation, derive, time_limit
 from harness.objects.documentation import equations_html
 from harness.objects.model_description import model_description
 from harness.objects.model_description_fmi3 import dependencies, from_fmi2
@@ -39,6 +39,13 @@ def no_progress(stage: str) -> None:
 def generate(object_file: str | Path, out: str | Path, progress: Callable[[str], None] = no_progress) -> GeneratedObject:
     """`progress` is told each stage as it begins."""
     spec = read_object_file(object_file)
+    with time_limit(GENERATION_SECONDS, f"{spec.path}: deriving and generating the equations took over "
+                                        f"{GENERATION_SECONDS:.0f} s; an expression expands into too many terms "
+                                        "(a high power of a sum, say): write the energies more simply"):
+        return _generate(spec, out, progress)
+
+
+def _generate(spec, out: str | Path, progress: Callable[[str], None]) -> GeneratedObject:
     progress("deriving Lagrange's equations")
     derivation = derive(spec)
     progress("generating the C code")

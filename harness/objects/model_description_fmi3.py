@@ -175,13 +175,27 @@ def _copied(element: ET.Element | None) -> list[str]:
     return ["  " + ET.tostring(element, encoding="unicode").rstrip()]
 
 
+def build_description(identifier: str, sources: tuple[str, ...] | list[str]) -> str:
+    """sources/buildDescription.xml: how an importer compiles the binary from the FMU's sources (C99,
+    linked with the math library)."""
+    files = "".join(f'      <SourceFile name={quoteattr(name)}/>\n' for name in sources)
+    return ('<?xml version="1.0" encoding="UTF-8"?>\n<fmiBuildDescription fmiVersion="3.0">\n'
+            f'  <BuildConfiguration modelIdentifier={quoteattr(identifier)}>\n    <SourceFileSet language="C99">\n'
+            f'{files}    </SourceFileSet>\n    <Library name="m"/>\n  </BuildConfiguration>\n</fmiBuildDescription>\n')
+
+
 def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(description="Write the FMI 3.0 description of an FMU from its FMI 2.0 one.")
-    parser.add_argument("fmi2", type=Path)
+    parser = argparse.ArgumentParser(description="Write the FMI 3.0 description of an FMU from its FMI 2.0 one, "
+                                                 "or (--build-description) its sources' build description.")
+    parser.add_argument("fmi2", type=Path, nargs="?")
     parser.add_argument("--out", required=True, type=Path)
+    parser.add_argument("--build-description", nargs="+", metavar=("IDENTIFIER", "SOURCE"))
     args = parser.parse_args(argv)
     args.out.parent.mkdir(parents=True, exist_ok=True)
-    args.out.write_text(from_fmi2(args.fmi2.read_text()))
+    if args.build_description:
+        args.out.write_text(build_description(args.build_description[0], args.build_description[1:]))
+    else:
+        args.out.write_text(from_fmi2(args.fmi2.read_text()))
     return 0
 
 

@@ -158,9 +158,9 @@ def _check_project_pendulums(system: System, names: list[str], needs: str) -> No
             raise HarnessError(f"{needs}; {component.name}.model = {model!r}: the reference is the nonlinear pendulum")
         carried = object_file_in(component.fmu)
         if carried is None or (carried.T, carried.U) != (project.T, project.U) or \
-                [p.position for p in carried.points] != [p.position for p in project.points]:
+                [(p.position, p.outputs) for p in carried.points] != [(p.position, p.outputs) for p in project.points]:
             raise HarnessError(f"{needs}; {component.name}: {Path(component.fmu).name} does not carry the project's "
-                               f"SimplePendulum energies and points")
+                               f"SimplePendulum energies and points (with their output names)")
 
 
 def coupling_error(result, physics: CoupledPendulums) -> float:
