@@ -39,7 +39,7 @@ def project_with_a_new_object(tmp_path_factory):
             shutil.copy2(source, copy / name)
     (copy / "modelDescription" / "Trolley.toml").write_text(TROLLEY)
     subprocess.run(["cmake", "-S", str(copy), "-B", str(copy / "build"), "-DCMAKE_BUILD_TYPE=Release",
-                    f"-DOBJECTS_PYTHON={sys.executable}"], check=True, capture_output=True)
+                    "-DFMU_CROSS=OFF", f"-DOBJECTS_PYTHON={sys.executable}"], check=True, capture_output=True)
     subprocess.run(["cmake", "--build", str(copy / "build"), "-j2"], check=True, capture_output=True)
     return copy
 
