@@ -63,6 +63,10 @@ def write(tmp_path: Path, text: str, name: str = "CartPendulumTest.toml") -> Pat
     ('cart = { x = "x", y = "0" }', 'cart = { x = "x", y = "0", names = { x = "E" } }', "points.cart.names.x",
      "every object already has"),
     ('[parameters]', 'require = ["0"]\n[parameters]', "require[0]", "depends on no parameter or coordinate"),
+    ('U = "-m*g*l*cos(phi)"', 'U = "' + "sin(" * 150 + "phi" + ")" * 150 + '"', "energy.U",
+     "parentheses nested 150 deep (at most 100)"),
+    ('U = "-m*g*l*cos(phi)"', 'U = "' + "(" * 250 + "phi" + ")" * 250 + '"', "energy.U",
+     "parentheses nested 250 deep (at most 100)"),
 ])
 def test_a_bad_object_file_gets_one_line_naming_file_key_and_problem(tmp_path, old, new, key, problem):
     assert old in CART_PENDULUM

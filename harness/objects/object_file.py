@@ -6,6 +6,7 @@ the key and the problem.
 """
 from __future__ import annotations
 
+import itertools
 import keyword
 import math
 import re
@@ -36,6 +37,7 @@ FUNCTIONS = {name: getattr(sp, name) for name in (
     "sin", "cos", "tan", "asin", "acos", "atan", "atan2", "sinh", "cosh", "tanh", "exp", "log", "sqrt", "Abs")}
 FUNCTIONS["pi"] = sp.pi
 IDENTIFIER = re.compile(r"[A-Za-z][A-Za-z0-9_]*\Z")
+MAX_NESTING = 100  # parentheses in one expression: Python's parser and SymPy's recursion give up near 200
 AXES = ("x", "y", "z")
 
 
@@ -208,6 +210,9 @@ class _Reader:
             bad = re.search(r"__|\.\s*[A-Za-z_]|[^A-Za-z0-9_+\-*/(). ,\t]", text).group(0)
             hint = " (write powers as **)" if bad == "^" else ""
             raise self.fail(where, f"{text!r}: {bad!r} is not allowed in an expression{hint}")
+        depth = max(itertools.accumulate((c == "(") - (c == ")") for c in text), default=0)
+        if depth > MAX_NESTING:
+            raise self.fail(where, f"parentheses nested {depth} deep (at most {MAX_NESTING})")
         namespace = {"__builtins__": {}, "Integer": sp.Integer, "Float": sp.Float, "Rational": sp.Rational,
                      "Symbol": sp.Symbol, "Add": sp.Add, "Mul": sp.Mul, "Pow": sp.Pow, **FUNCTIONS}
         try:
