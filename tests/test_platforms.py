@@ -173,7 +173,9 @@ def test_each_binary_gives_the_x86_64_linux_numbers(importers, tmp_path, platfor
     arguments: the first such ulp grows with the motion, to 1e-12 at most over 10 s (the Kapitza
     pendulum's fast drive, cos(Omega t) at large arguments)."""
     version = PLATFORMS[platform][0]
-    for name in FMU_NAMES:
+    # FMI 3.0 under Wine: the DLLs differ from FMI 2.0's in the API layer only, which three models cover
+    names = ("SimplePendulum", "Chain5", "Spring") if platform == "x86_64-windows" else FMU_NAMES
+    for name in names:
         native, other = run_everywhere(importers, tmp_path, name, version, platform, kind, [])
         assert len(native) == 202 and len(other) == 202
         if kind == "qemu":
