@@ -107,35 +107,43 @@ static int ensure_constants(Instance *inst, const char *function)
     return 1;
 }
 
-/* Calculated outputs and state derivatives, computed only when someone reads them. */
-static Status ensure_outputs(Instance *inst, const char *function)
+/* The state derivatives (which follow the states in real[]) and the calculated outputs for the states,
+ * parameters and inputs in real[]; Discard where they are undefined or not finite. */
+static Status compute_outputs(Instance *inst, const char *function, double *real)
 {
     double *dx = NULL;
-    if (inst->outputs_valid) return STATUS_OK;
-    if (!ensure_constants(inst, function)) return STATUS_ERROR;
+    int bad;
 #if N_STATES > 0
     {
         double u[INPUT_SLOTS];
         gather_inputs(inst, u);
-        dx = inst->s.real + N_STATES; /* der(x) follow the states (checked by the code generator) */
-        model_derivatives(&inst->constants, inst->s.time, inst->s.real, u, dx);
-        /* In Model Exchange these are the importer's solver's evaluations; in Co-Simulation the
-           integrator counts its own and this one only serves the outputs. */
-        if (inst->type == INTERFACE_MODEL_EXCHANGE) inst->s.integrator.n_rhs++;
+        dx = real + N_STATES; /* der(x) follow the states (checked by the code generator) */
+        model_derivatives(&inst->constants, inst->s.time, real, u, dx);
     }
 #endif
-    if (!model_outputs(&inst->constants, inst->s.time, dx, inst->s.real)) {
+    if (!model_outputs(&inst->constants, inst->s.time, dx, real)) {
         log_discard(inst, "%s: the outputs are undefined in the current (singular) configuration", function);
         return STATUS_DISCARD;
     }
-    {
-        const int bad = first_non_finite(inst->s.real, N_REAL);
-        if (bad >= 0) {
-            log_discard(inst, "%s: %s is not finite for the current inputs and states", function,
-                        REAL_VARIABLES[bad].name);
-            return STATUS_DISCARD;
-        }
+    bad = first_non_finite(real, N_REAL);
+    if (bad >= 0) {
+        log_discard(inst, "%s: %s is not finite for the current inputs and states", function, REAL_VARIABLES[bad].name);
+        return STATUS_DISCARD;
     }
+    return STATUS_OK;
+}
+
+/* Calculated outputs and state derivatives, computed only when someone reads them. */
+static Status ensure_outputs(Instance *inst, const char *function)
+{
+    Status status;
+    if (inst->outputs_valid) return STATUS_OK;
+    if (!ensure_constants(inst, function)) return STATUS_ERROR;
+    status = compute_outputs(inst, function, inst->s.real);
+    /* In Model Exchange these are the importer's solver's evaluations; in Co-Simulation the
+       integrator counts its own and this one only serves the outputs. */
+    if (N_STATES > 0 && inst->type == INTERFACE_MODEL_EXCHANGE) inst->s.integrator.n_rhs++;
+    if (status != STATUS_OK) return status;
     inst->outputs_valid = 1;
     return STATUS_OK;
 }
@@ -914,30 +922,9 @@ static int unknown_valid(Instance *inst, const char *function, unsigned int vr)
  * belong to the end of the last step, whatever inputs were set since). Discard where they are undefined. */
 static Status linearization_point(Instance *inst, const char *function, double point[N_REAL])
 {
-    double *dx = NULL;
-    int bad;
     if (!ensure_constants(inst, function)) return STATUS_ERROR;
     memcpy(point, inst->s.real, N_REAL * sizeof *point);
-#if N_STATES > 0
-    {
-        double u[INPUT_SLOTS];
-        gather_inputs(inst, u);
-        dx = point + N_STATES;
-        model_derivatives(&inst->constants, inst->s.time, point, u, dx);
-    }
-#endif
-    if (!model_outputs(&inst->constants, inst->s.time, dx, point)) {
-        log_discard(inst, "%s: the outputs are undefined in the current (singular) configuration, and so are "
-                    "their derivatives", function);
-        return STATUS_DISCARD;
-    }
-    bad = first_non_finite(point, N_REAL);
-    if (bad >= 0) {
-        log_discard(inst, "%s: %s is not finite for the current inputs and states; no derivative handed out",
-                    function, REAL_VARIABLES[bad].name);
-        return STATUS_DISCARD;
-    }
-    return STATUS_OK;
+    return compute_outputs(inst, function, point);
 }
 
 /* Jacobian times the seed (by value reference of the knowns) into change[N_REAL] (by value reference

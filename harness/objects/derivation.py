@@ -122,54 +122,52 @@ class _OutOfTime(Exception):
     pass
 
 
-def readable(expressions: list, seconds: float = SIMPLIFY_SECONDS) -> list[sp.Expr]:
-    """The expressions simplified, in order, while `seconds` last (or an outer time_limit, if that ends
-    first); the rest as they are. The clock is a timer signal, so this simplifies only in the main
-    thread (elsewhere all are returned as they are)."""
-    expressions = [sp.sympify(e) for e in expressions]
-    if threading.current_thread() is not threading.main_thread():
-        return expressions
-
-    def out_of_time(signum, frame):
-        raise _OutOfTime
-    outer = signal.getitimer(signal.ITIMER_REAL)[0]
-    budget = min(seconds, outer) if outer > 0 else seconds
-    started = time.monotonic()
-    previous = signal.signal(signal.SIGALRM, out_of_time)
-    signal.setitimer(signal.ITIMER_REAL, budget)
-    result = []
-    try:
-        for expr in expressions:
-            result.append(sp.simplify(expr))
-    except _OutOfTime:
-        result += expressions[len(result):]
-    finally:
-        signal.setitimer(signal.ITIMER_REAL, 0)
-        signal.signal(signal.SIGALRM, previous)
-        if outer > 0:  # the outer clock goes on where it was
-            signal.setitimer(signal.ITIMER_REAL, max(1e-3, outer - (time.monotonic() - started)))
-    return result
-
-
 @contextmanager
-def time_limit(seconds: float, message: str):
-    """Raises ObjectFileError(message) when the block takes longer than `seconds` (main thread only:
-    a timer signal interrupts SymPy, which has no bound on its work of its own)."""
+def _clock(seconds: float):
+    """Raises _OutOfTime in the block after `seconds`, or when an enclosing clock runs out first, which
+    then goes on with what it has left. Yields False, and measures nothing, outside the main thread (a
+    timer signal is the only way to interrupt SymPy, which bounds none of its work)."""
     if threading.current_thread() is not threading.main_thread():
-        yield
+        yield False
         return
 
     def out_of_time(signum, frame):
         raise _OutOfTime
+    outer = signal.getitimer(signal.ITIMER_REAL)[0]
+    started = time.monotonic()
     previous = signal.signal(signal.SIGALRM, out_of_time)
-    signal.setitimer(signal.ITIMER_REAL, seconds)
+    signal.setitimer(signal.ITIMER_REAL, min(seconds, outer) if outer > 0 else seconds)
     try:
-        yield
-    except _OutOfTime:
-        raise ObjectFileError(message) from None
+        yield True
     finally:
         signal.setitimer(signal.ITIMER_REAL, 0)
         signal.signal(signal.SIGALRM, previous)
+        if outer > 0:
+            signal.setitimer(signal.ITIMER_REAL, max(1e-3, outer - (time.monotonic() - started)))
+
+
+def readable(expressions: list, seconds: float = SIMPLIFY_SECONDS) -> list[sp.Expr]:
+    """The expressions simplified, in order, while `seconds` last (or an enclosing time_limit); the rest
+    as they are (all of them outside the main thread)."""
+    expressions = [sp.sympify(e) for e in expressions]
+    result = []
+    with _clock(seconds) as measured:
+        try:
+            for expr in expressions if measured else ():
+                result.append(sp.simplify(expr))
+        except _OutOfTime:
+            pass
+    return result + expressions[len(result):]
+
+
+@contextmanager
+def time_limit(seconds: float, message: str):
+    """Raises ObjectFileError(message) when the block takes longer than `seconds` (main thread only)."""
+    with _clock(seconds):
+        try:
+            yield
+        except _OutOfTime:
+            raise ObjectFileError(message) from None
 
 
 def vanishes(expr, spec: ObjectSpec) -> bool:
