@@ -146,14 +146,19 @@ def scratch_folder(prefix: str) -> Iterator[Path]:
         shutil.rmtree(folder, ignore_errors=True)
 
 
-def extract_fmu(fmu: Path, platform: str = "linux64") -> Path:
+# x86_64 Linux in FMI 2.0 and FMI 3.0
+THIS_PLATFORM = ("linux64", "x86_64-linux")
+
+
+def extract_fmu(fmu: Path, platforms: tuple[str, ...] = THIS_PLATFORM) -> Path:
     """The parts of an FMU an importer needs (model description, this platform's binaries,
     resources) in a new temporary folder; the caller removes it. Nothing is left behind on error."""
     folder = Path(tempfile.mkdtemp(prefix="fmu_"))
+    binaries = tuple(f"binaries/{platform}/" for platform in platforms)
     try:
         with open_archive(fmu, str(fmu)) as archive:
             extract_members(archive, folder, lambda name: name == "modelDescription.xml"
-                            or name.startswith((f"binaries/{platform}/", "resources/")), str(fmu))
+                            or name.startswith((*binaries, "resources/")), str(fmu))
     except BaseException:
         shutil.rmtree(folder, ignore_errors=True)
         raise

@@ -91,8 +91,8 @@ def command_simulate(args: argparse.Namespace) -> int:
 
 def _points_to_draw(fmu: Path) -> list[tuple[str, str]]:
     """The (x, y) outputs --plot draws; refused before the run when there are none."""
-    from harness.fmi.fmu_instance import read_fmi2_description
-    outputs = [v.name for v in read_fmi2_description(fmu).modelVariables if v.causality == "output"]
+    from harness.fmi.fmu_instance import read_description
+    outputs = [v.name for v in read_description(fmu).modelVariables if v.causality == "output"]
     pairs = plotted_points(fmu, outputs)
     if not pairs:
         raise HarnessError(f"--plot: {fmu.name} has no moving point to draw (no pair of x and y outputs)")
@@ -173,7 +173,7 @@ def command_run(args: argparse.Namespace) -> int:
             result = master.run(on_row=write_row)
     steps = (f"{result.macro_steps} macro steps chosen by step doubling (rows every {step:g} s)" if args.tolerance
              else f"{result.macro_steps} macro steps of {step:g} s")
-    print(f"wrote {out}: {steps}, {args.algorithm}, {args.extrapolation} "
+    print(f"wrote {out}: {steps}, {args.algorithm}, {result.extrapolation} "
           f"extrapolation; energy residual {result.energy_residual:.3e} J"
           + (f", {result.retries} retried steps" if result.retries else "")
           + (f", {result.iterations} iteration passes ({result.unconverged} unconverged)" if args.iterate else ""))
@@ -296,7 +296,8 @@ def build_parser() -> argparse.ArgumentParser:
     sub = parser.add_subparsers(dest="command", required=True)
 
     p = sub.add_parser("simulate", help="simulate one FMU, write CSV (and a trace plot)")
-    p.add_argument("fmu", help="a .fmu file or one of SimplePendulum, DoublePendulum, SpringPendulum, Spring")
+    p.add_argument("fmu", help="a .fmu file (FMI 2.0 or 3.0) or a project FMU: SimplePendulum, DoublePendulum, ... "
+                               "(FMI 2.0), fmi3/SimplePendulum, ... (FMI 3.0)")
     p.add_argument("--stop", type=positive_number, default=10.0, help="stop time [s] (default 10)")
     p.add_argument("--step", type=positive_number, default=0.01, help="communication step [s] (default 0.01)")
     p.add_argument("--solver", help="integration method (euler ... ab6; default rk4)")
@@ -312,7 +313,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--stop", type=positive_number, help="stop time [s] (default: the system's)")
     p.add_argument("--step", type=positive_number, help="communication step [s] (default: the system's)")
     p.add_argument("--algorithm", choices=["jacobi", "gauss-seidel"], default="gauss-seidel")
-    p.add_argument("--extrapolation", choices=["hold", "linear"], default="linear")
+    p.add_argument("--extrapolation", choices=["hold", "linear"],
+                   help="inputs over a macro step (default: linear, or hold where an FMI 3.0 component receives "
+                        "inputs: FMI 3.0 has no input derivatives)")
     p.add_argument("--on-discard", choices=["stop", "retry"], default="stop",
                    help="after fmi2Discard: stop, or roll back and retry with halved steps")
     p.add_argument("--iterate", type=positive_number, metavar="TOL",

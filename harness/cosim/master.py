@@ -1,18 +1,26 @@
 """The co-simulation master: Jacobi or Gauss-Seidel over a fixed communication grid, inputs held or
-extrapolated linearly, fmi2Discard handled by rollback and smaller steps or a clear stop.
+extrapolated linearly, a discarded step handled by rollback and smaller steps or a clear stop. The
+components may be FMI 2.0 and FMI 3.0 FMUs in any mix.
 
 In FMI 2.0 an input and its derivative are values at the start of the receiving step. With linear
 extrapolation a source that has not stepped yet hands over y(t) and its output derivative; in
 Gauss-Seidel a source that has already stepped hands over y(t) with the slope (y(t+H) - y(t))/H,
 which is second-order accurate without making a receiver such as the Spring advance y(t+H) again.
 
+FMI 3.0 has no input derivatives, so an FMI 3.0 component cannot receive a linearly extrapolated
+input: by default the inputs are extrapolated linearly when every receiving component is FMI 2.0
+and held otherwise; asking for linear extrapolation (or iteration, which interpolates the inputs
+the same way) with an FMI 3.0 receiver is refused by name. FMI 3.0 sources hand over their output
+derivatives like FMI 2.0 ones.
+
 The loop calls the FMUs' C functions directly with preallocated ctypes arrays: per FMU and macro
-step one fmi2SetReal, one fmi2DoStep, one fmi2GetReal (plus the derivative calls for linear
-extrapolation and an fmi2GetInteger where a component has Integer outputs).
+step one set, one step, one get of the float variables (plus the derivative calls for linear
+extrapolation and a get of the integers where a component has integer outputs).
 """
 from __future__ import annotations
 
 import ctypes
+import dataclasses
 import math
 from dataclasses import dataclass, field
 from typing import Callable
@@ -21,6 +29,7 @@ import numpy as np
 
 from harness.cosim.structure import System
 from harness.errors import HarnessError, where
+from harness.fmi.calls import is_float
 from harness.fmi.fmu_instance import DISCARD, ERROR, OK, STATUS_NAMES, FmuInstance
 from harness.fmi.results import TimeTable
 from harness.fmi.simulation import Progress, check_table_size, communication_grid
@@ -35,7 +44,7 @@ class MasterOptions:
     step: float
     start: float = 0.0
     algorithm: str = "gauss-seidel"
-    extrapolation: str = "linear"
+    extrapolation: str | None = None  # hold or linear; None: linear unless an FMI 3.0 component receives inputs
     on_discard: str = "stop"  # "stop", or "retry": roll back (FMU states) and halve the step
     max_halvings: int = 10
     iterate_tol: float | None = None  # iterate each macro step to this change in the outputs
@@ -46,7 +55,7 @@ class MasterOptions:
     def __post_init__(self) -> None:
         if self.algorithm not in ALGORITHMS:
             raise HarnessError(f"--algorithm {self.algorithm!r}: choose one of {', '.join(ALGORITHMS)}")
-        if self.extrapolation not in EXTRAPOLATIONS:
+        if self.extrapolation is not None and self.extrapolation not in EXTRAPOLATIONS:
             raise HarnessError(f"--extrapolation {self.extrapolation!r}: choose one of {', '.join(EXTRAPOLATIONS)}")
         if self.on_discard not in ("stop", "retry"):
             raise HarnessError(f"on_discard {self.on_discard!r}: choose stop or retry")
@@ -66,6 +75,7 @@ class CoSimulationResult(TimeTable):
     messages: list[str] = field(default_factory=list)
     iterations: int = 0  # passes of iterated macro steps
     unconverged: int = 0  # iterated macro steps that reached max_iterations
+    extrapolation: str = "linear"  # what the run used (the default depends on the components' FMI versions)
 
     @property
     def energy_residual(self) -> float:
@@ -93,8 +103,8 @@ class _Unit:
     def _prepare(self, component, system: System) -> None:
         self.start = component.start
         variables = self.instance.model_description.modelVariables
-        self.real_outputs = [v.name for v in variables if v.causality == "output" and v.type == "Real"]
-        self.integer_outputs = [v.name for v in variables if v.causality == "output" and v.type != "Real"]
+        self.real_outputs = [v.name for v in variables if v.causality == "output" and is_float(v)]
+        self.integer_outputs = [v.name for v in variables if v.causality == "output" and not is_float(v)]
         self.inputs = [c for c in system.connections if c.target == self.name]
         for c in self.inputs:
             variable = self.instance.variables.get(c.input)
@@ -102,13 +112,13 @@ class _Unit:
                 raise HarnessError(f"connection {c}: {self.name} has no input {c.input!r}")
         n_out, n_in, n_int = len(self.real_outputs), len(self.inputs), len(self.integer_outputs)
         self.out_vrs = (ctypes.c_uint * max(n_out, 1))(*[self.instance.reference(n) for n in self.real_outputs])
-        self.int_vrs = (ctypes.c_uint * max(n_int, 1))(*[self.instance.reference(n) for n in self.integer_outputs])
         self.in_vrs = (ctypes.c_uint * max(n_in, 1))(*[self.instance.reference(c.input) for c in self.inputs])
         self.orders_out = (ctypes.c_int * max(n_out, 1))(*([1] * n_out))
         self.orders_in = (ctypes.c_int * max(n_in, 1))(*([1] * n_in))
         self.y_next, self.dy_next = _doubles(n_out), _doubles(n_out)  # after this unit's step
         self.u, self.du = _doubles(n_in), _doubles(n_in)
-        self.ints = (ctypes.c_int * max(n_int, 1))()
+        self.integers = self.instance.integer_reader(self.integer_outputs)
+        self.ints = np.zeros(max(n_int, 1), dtype=self.integers.dtype)
         self.n_out, self.n_in, self.n_int = n_out, n_in, n_int
         # numpy views on the ctypes buffers: routing is vectorised, no per-variable Python work
         self.y_next_view = np.ctypeslib.as_array(self.y_next)[:n_out]
@@ -117,13 +127,12 @@ class _Unit:
         self.du_view = np.ctypeslib.as_array(self.du)[:n_in]
         self.y_now = np.zeros(n_out)    # outputs at the start of the macro step
         self.dy_now = np.zeros(n_out)   # their derivatives there
-        lib = self.instance.fmu.dll
-        self.component = ctypes.c_void_p(self.instance.fmu.component)
-        self.set_real, self.get_real, self.get_integer = lib.fmi2SetReal, lib.fmi2GetReal, lib.fmi2GetInteger
-        self.do_step = lib.fmi2DoStep
-        self.do_step.argtypes = [ctypes.c_void_p, ctypes.c_double, ctypes.c_double, ctypes.c_int]
-        self.set_derivatives = lib.fmi2SetRealInputDerivatives
-        self.get_derivatives = lib.fmi2GetRealOutputDerivatives
+        raw = self.instance.raw
+        self.component = raw.component
+        self.set_real, self.get_real, self.do_step = raw.set_real, raw.get_real, raw.do_step
+        self.set_derivatives = raw.input_derivatives()  # None for FMI 3.0
+        self.get_derivatives = raw.output_derivatives()
+        self.names = dict(raw.names, set=raw.float_type.setter, get=raw.float_type.getter)  # for messages
         energy_name = "E" if "E" in self.real_outputs else "E_pot" if "E_pot" in self.real_outputs else None
         self.energy_index = self.real_outputs.index(energy_name) if energy_name else None
         self.states = [ctypes.c_void_p(), ctypes.c_void_p()]
@@ -134,17 +143,32 @@ class _Unit:
         return status
 
     def read_outputs(self, derivatives: bool) -> None:
-        self.check(self.get_real(self.component, self.out_vrs, self.n_out, self.y_next), "fmi2GetReal")
+        self.check(self.get_real(self.component, self.out_vrs, self.n_out, self.y_next), self.names["get"])
         if derivatives:
             self.check(self.get_derivatives(self.component, self.out_vrs, self.n_out, self.orders_out,
-                                            self.dy_next), "fmi2GetRealOutputDerivatives")
+                                            self.dy_next), self.names["output_derivatives"])
+
+    def write_inputs(self, derivatives: bool) -> None:
+        self.check(self.set_real(self.component, self.in_vrs, self.n_in, self.u), self.names["set"])
+        if derivatives:
+            self.check(self.set_derivatives(self.component, self.in_vrs, self.n_in, self.orders_in, self.du),
+                       self.names["input_derivatives"])
+
+    def step(self, t: float, H: float) -> int:
+        return self.check(self.do_step(self.component, t, H, 1), f"{self.names['do_step']} at t = {t}")
+
+    def save(self, slot: int) -> None:
+        self.check(self.instance.role("get_state", ctypes.byref(self.states[slot])), self.names["get_state"])
+
+    def restore(self, slot: int) -> None:
+        self.check(self.instance.role("set_state", self.states[slot]), self.names["set_state"])
 
     def free(self) -> None:
         """Releases the saved FMU states, then the instance."""
         if self.instance.fmu is not None:
             for state in self.states:
                 if state.value:
-                    self.instance.call("fmi2FreeFMUstate", ctypes.byref(state))
+                    self.instance.role("free_state", ctypes.byref(state))
         self.instance.free()
 
 
@@ -162,6 +186,7 @@ class Master:
                 for component in system.components:
                     self.units.append(_Unit(component, system))
                 self._route()
+                self.options = dataclasses.replace(options, extrapolation=self._extrapolation(options))
         except BaseException:
             self.free()
             raise
@@ -187,6 +212,21 @@ class Master:
                 ins.append(k)
             self.routes.append([(by_name[s], np.array(o), np.array(i)) for s, (o, i) in grouped.items()])
 
+    def _extrapolation(self, options: MasterOptions) -> str:
+        """The extrapolation asked for, or by default linear unless an FMI 3.0 component receives
+        inputs (FMI 3.0 has no input derivatives to hand them over)."""
+        receivers = [u for u in self.units if u.n_in and u.set_derivatives is None]
+        if not receivers:
+            return options.extrapolation or "linear"
+        names = ", ".join(f"{u.name!r}" for u in receivers)
+        if options.extrapolation == "linear":
+            raise HarnessError(f"linear extrapolation sets input derivatives, which the FMI 3.0 component(s) {names} "
+                               "do not take: use --extrapolation hold, or their FMI 2.0 FMUs")
+        if options.iterate_tol:
+            raise HarnessError(f"iterated macro steps interpolate the inputs through input derivatives, which the "
+                               f"FMI 3.0 component(s) {names} do not take: leave out --iterate, or use their FMI 2.0 FMUs")
+        return "hold"
+
     @staticmethod
     def _check_units(source: _Unit, output: str, target: _Unit, input_: str, connection) -> None:
         a = source.instance.variables[output].unit
@@ -198,12 +238,8 @@ class Master:
     def _initialize(self) -> None:
         linear = self.options.extrapolation == "linear"
         for unit in self.units:
-            inst = unit.instance
-            inst._require(inst.call("fmi2SetupExperiment", 0, 0.0, ctypes.c_double(self.options.start), 0, 0.0),
-                          "fmi2SetupExperiment")
             with where(self.system.origin, self.system.workspace), where(f"component {unit.name!r}"):
-                inst._require(inst.set(**unit.start), "setting start values")
-            inst._require(inst.call("fmi2EnterInitializationMode"), "fmi2EnterInitializationMode")
+                unit.instance.enter_initialization(self.options.start, **unit.start)
         # Copy connected outputs to inputs until they settle, so that forces at t = 0 are consistent.
         for _ in range(50):
             change = 0.0
@@ -216,12 +252,12 @@ class Master:
                 before = unit.u_view.copy()
                 for source, outs, ins in routes:
                     unit.u_view[ins] = source.y_now[outs]
-                unit.check(unit.set_real(unit.component, unit.in_vrs, unit.n_in, unit.u), "fmi2SetReal")
+                unit.write_inputs(False)
                 change = max(change, float(np.max(np.abs(unit.u_view - before))))
             if change <= 1e-14:
                 break
         for unit in self.units:
-            unit.instance._require(unit.instance.call("fmi2ExitInitializationMode"), "fmi2ExitInitializationMode")
+            unit.instance.exit_initialization()
             unit.read_outputs(linear)
             unit.y_now[:] = unit.y_next_view
             if linear:
@@ -245,10 +281,7 @@ class Master:
                 unit.u_view[ins] = source.y_now[outs]
                 if linear:
                     unit.du_view[ins] = source.dy_now[outs]
-        unit.check(unit.set_real(unit.component, unit.in_vrs, unit.n_in, unit.u), "fmi2SetReal")
-        if linear:
-            unit.check(unit.set_derivatives(unit.component, unit.in_vrs, unit.n_in, unit.orders_in, unit.du),
-                       "fmi2SetRealInputDerivatives")
+        unit.write_inputs(linear)
 
     def _macro_step(self, t: float, H: float) -> tuple[int, _Unit | None]:
         """Steps every unit from t to t + H; returns (status, the unit that discarded)."""
@@ -258,16 +291,14 @@ class Master:
             for k in range(len(self.units)):
                 self._feed(k, H, stepped)
             for unit in self.units:
-                status = unit.check(unit.do_step(unit.component, t, H, 1), f"fmi2DoStep at t = {t}")
-                if status == DISCARD:
+                if unit.step(t, H) == DISCARD:
                     return DISCARD, unit
             for unit in self.units:
                 unit.read_outputs(linear)
         else:
             for k, unit in enumerate(self.units):
                 self._feed(k, H, stepped)
-                status = unit.check(unit.do_step(unit.component, t, H, 1), f"fmi2DoStep at t = {t}")
-                if status == DISCARD:
+                if unit.step(t, H) == DISCARD:
                     return DISCARD, unit
                 unit.read_outputs(linear)
                 stepped.add(unit.name)
@@ -280,12 +311,12 @@ class Master:
     # ---- rollback through FMU states (slot 0: step control and discard retry, slot 1: iteration)
     def _save(self, slot: int) -> list[tuple[np.ndarray, np.ndarray]]:
         for unit in self.units:
-            unit.check(unit.instance.call("fmi2GetFMUstate", ctypes.byref(unit.states[slot])), "fmi2GetFMUstate")
+            unit.save(slot)
         return [(unit.y_now.copy(), unit.dy_now.copy()) for unit in self.units]
 
     def _restore(self, slot: int, saved: list[tuple[np.ndarray, np.ndarray]]) -> None:
         for unit, (y, dy) in zip(self.units, saved):
-            unit.check(unit.instance.call("fmi2SetFMUstate", unit.states[slot]), "fmi2SetFMUstate")
+            unit.restore(slot)
             unit.y_now[:], unit.dy_now[:] = y, dy
 
     def _iterated_step(self, t: float, H: float) -> tuple[int, _Unit | None]:
@@ -304,11 +335,9 @@ class Master:
                 for source, outs, ins in self.routes[k]:
                     unit.u_view[ins] = source.y_now[outs]
                     unit.du_view[ins] = (guess[index[source.name]][outs] - source.y_now[outs]) / H
-                unit.check(unit.set_real(unit.component, unit.in_vrs, unit.n_in, unit.u), "fmi2SetReal")
-                unit.check(unit.set_derivatives(unit.component, unit.in_vrs, unit.n_in, unit.orders_in, unit.du),
-                           "fmi2SetRealInputDerivatives")
+                unit.write_inputs(True)
             for unit in self.units:
-                if unit.check(unit.do_step(unit.component, t, H, 1), f"fmi2DoStep at t = {t}") == DISCARD:
+                if unit.step(t, H) == DISCARD:
                     return DISCARD, unit
             change = 0.0
             for unit, g in zip(self.units, guess):
@@ -420,7 +449,7 @@ class Master:
                 column += unit.n_out
             for unit in self.units:
                 if unit.n_int:
-                    unit.check(unit.get_integer(unit.component, unit.int_vrs, unit.n_int, unit.ints), "fmi2GetInteger")
+                    unit.check(unit.integers.read(unit.ints.ctypes.data), unit.integers.function)
                     table[rows, column:column + unit.n_int] = unit.ints[:unit.n_int]
                     column += unit.n_int
             energy[rows] = sum(u.y_now[u.energy_index] for u in self.units if u.energy_index is not None) \
@@ -434,7 +463,7 @@ class Master:
             self.macro_steps = rows - 1
             if status >= ERROR:
                 culprit = self.units[culprit_index]
-                raise HarnessError(f"{culprit.name}: an fmi2 call returned {STATUS_NAMES[status]} near "
+                raise HarnessError(f"{culprit.name}: an {culprit.instance.prefix} call returned {STATUS_NAMES[status]} near "
                                    f"t = {grid[rows - 1]:g}: {culprit.instance.last_message()}")
             if status != OK:
                 culprit = self.units[culprit_index]
@@ -469,14 +498,14 @@ class Master:
                 progress(grid[k + 1], (k + 1) / (len(grid) - 1))
         messages = [f"{u.name}: {m}" for u in self.units for m in u.instance.log.messages]
         return CoSimulationResult(columns, table[:rows], energy[:rows], stopped_at, message, self.macro_steps,
-                                  retries, messages, self.iterations, self.unconverged)
+                                  retries, messages, self.iterations, self.unconverged, self.options.extrapolation)
 
     def _native_eligible(self) -> bool:
         o = self.options
         return o.iterate_tol is None and o.tolerance is None and o.on_discard == "stop" and self.use_native
 
     def _native_runner(self, table: np.ndarray, energy: np.ndarray):
-        """The C loop over the same buffers and fmi2 functions, run in chunks so that progress is shown
+        """The C loop over the same buffers and C functions, run in chunks so that progress is shown
         and rows reach the caller as they come; None when the core is not built."""
         from harness.cosim.native_core import CoreUnit, load_core
         core = load_core()
@@ -485,26 +514,31 @@ class Master:
         index = {unit.name: k for k, unit in enumerate(self.units)}
         structs = (CoreUnit * len(self.units))()
         keep = []  # arrays the structs point into
-        address = lambda f: ctypes.cast(f, ctypes.c_void_p).value  # noqa: E731
         double_p, int_p = ctypes.POINTER(ctypes.c_double), ctypes.POINTER(ctypes.c_int)
+        kinds = {np.dtype(np.intc): 0, np.dtype(np.int64): 1, np.dtype(np.uint64): 2}
         for struct, unit in zip(structs, self.units):
-            lib = unit.instance.fmu.dll
+            raw = unit.instance.raw
             sources = np.array([index[c.source] for c in unit.inputs] or [0], dtype=np.intc)
             positions = np.array([self.units[index[c.source]].real_outputs.index(c.output) for c in unit.inputs]
                                  or [0], dtype=np.intc)
             keep += [sources, positions]
             struct.component = unit.component.value
-            struct.set_real, struct.get_real = address(lib.fmi2SetReal), address(lib.fmi2GetReal)
-            struct.get_integer, struct.do_step = address(lib.fmi2GetInteger), address(lib.fmi2DoStep)
-            struct.set_derivatives = address(lib.fmi2SetRealInputDerivatives)
-            struct.get_derivatives = address(lib.fmi2GetRealOutputDerivatives)
+            struct.fmi3 = int(raw.version == "3.0")
+            struct.set_real, struct.get_real = raw.function(raw.float_type.setter), raw.function(raw.float_type.getter)
+            struct.do_step = raw.function(raw.names["do_step"])
+            struct.get_integer, struct.int_vrs = unit.integers.address, unit.integers.vrs
+            struct.integer_kind = kinds[unit.integers.dtype]
+            if raw.names["input_derivatives"]:
+                struct.set_derivatives = raw.function(raw.names["input_derivatives"])
+            struct.get_derivatives = raw.function(raw.names["output_derivatives"])
+            struct.last_time = ctypes.pointer(raw.last_time)
             struct.n_out, struct.n_in, struct.n_int = unit.n_out, unit.n_in, unit.n_int
-            struct.out_vrs, struct.in_vrs, struct.int_vrs = unit.out_vrs, unit.in_vrs, unit.int_vrs
+            struct.out_vrs, struct.in_vrs = unit.out_vrs, unit.in_vrs
             struct.orders_out, struct.orders_in = unit.orders_out, unit.orders_in
             struct.y_now = unit.y_now.ctypes.data_as(double_p)
             struct.dy_now = unit.dy_now.ctypes.data_as(double_p)
             struct.y_next, struct.dy_next = unit.y_next, unit.dy_next
-            struct.u, struct.du, struct.ints = unit.u, unit.du, unit.ints
+            struct.u, struct.du, struct.ints = unit.u, unit.du, unit.ints.ctypes.data
             struct.source_unit = sources.ctypes.data_as(int_p)
             struct.source_index = positions.ctypes.data_as(int_p)
             struct.energy_index = -1 if unit.energy_index is None else unit.energy_index

@@ -18,7 +18,9 @@ class CoreUnit(ctypes.Structure):
                 ("n_int", ctypes.c_int), ("out_vrs", _uint_p), ("in_vrs", _uint_p), ("int_vrs", _uint_p),
                 ("orders_out", _int_p), ("orders_in", _int_p), ("y_now", _double_p), ("dy_now", _double_p),
                 ("y_next", _double_p), ("dy_next", _double_p), ("u", _double_p), ("du", _double_p),
-                ("ints", _int_p), ("source_unit", _int_p), ("source_index", _int_p), ("energy_index", ctypes.c_int)]
+                ("ints", ctypes.c_void_p), ("source_unit", _int_p), ("source_index", _int_p),
+                ("energy_index", ctypes.c_int), ("fmi3", ctypes.c_int), ("integer_kind", ctypes.c_int),
+                ("last_time", _double_p)]
 
 
 def load_core() -> ctypes.CDLL | None:

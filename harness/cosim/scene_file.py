@@ -15,7 +15,8 @@ a one-line HarnessError naming the file and the place.
       "camera": {"scale": 200, "frame_rate": 25}
     }
 
-"fmu" is one of the project's FMU names (built on demand) or a path relative to the scene file. A
+"fmu" is one of the project's FMU names (built on demand; "fmi3/SimplePendulum" names the FMI 3.0
+build) or a path relative to the scene file, of FMI 2.0 or 3.0, mixed as needed. A
 start value is a finite number or the name of an enumeration item. Components are stepped in the
 order listed (this is the Gauss-Seidel order). "accuracy" holds "position" (metres) or "pixels"
 (through the camera's scale).
@@ -29,7 +30,7 @@ from pathlib import Path
 from harness.cosim.structure import Component, Connection, System
 from harness.errors import HarnessError
 from harness.fmi.fmu_instance import is_number_text
-from harness.fmi.fmus import FMU_NAMES, locate_fmu
+from harness.fmi.fmus import FMU_NAMES, locate_fmu, project_fmu_name
 
 MAX_SCENE_BYTES = 16 << 20
 
@@ -135,8 +136,8 @@ def read_json(path: Path) -> object:
 
 
 def _check_traces(fmu: Path, pairs: list[tuple[str, str]], where: str, read: _Reader) -> None:
-    from harness.fmi.fmu_instance import read_fmi2_description
-    outputs = [v.name for v in read_fmi2_description(fmu).modelVariables if v.causality == "output"]
+    from harness.fmi.fmu_instance import read_description
+    outputs = [v.name for v in read_description(fmu).modelVariables if v.causality == "output"]
     for name in (name for pair in pairs for name in pair):
         if name not in outputs:
             raise read.fail(where, f"names {name!r}, which is not an output of {fmu.name} "
@@ -173,7 +174,7 @@ def _split(reference: str, where: str, read: _Reader) -> tuple[str, str]:
 
 
 def _fmu_path(value: str, base: Path, where: str, read: _Reader) -> Path:
-    if value in FMU_NAMES:
+    if project_fmu_name(value):
         return locate_fmu(value)
     path = (base / value).resolve()
     if not path.is_file():

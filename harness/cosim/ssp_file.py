@@ -19,7 +19,7 @@ from pathlib import Path, PurePosixPath
 from harness.archives import MAX_BYTES, MAX_READ, extract_members, name_problem, open_archive, read_member
 from harness.cosim.structure import Component, Connection, System
 from harness.errors import HarnessError
-from harness.fmi.fmu_instance import read_fmi2_description
+from harness.fmi.fmu_instance import read_description
 
 SSD = "SystemStructure.ssd"
 
@@ -111,7 +111,7 @@ def _units_match(fmu: Path, units: dict[str, str], what: str) -> None:
     if not units:
         return
     declared = {v.name: v.unit or (v.declaredType.unit if v.declaredType is not None else None)
-                for v in read_fmi2_description(fmu).modelVariables}
+                for v in read_description(fmu).modelVariables}
     for name, unit in units.items():
         if name in declared and declared[name] != unit:
             raise HarnessError(f"{what}: parameter {name!r} is given in {unit!r}, but the FMU's variable is in "

@@ -1,8 +1,9 @@
-"""One FMU instance, addressed by variable names, with its log captured.
+"""One FMU instance (FMI 2.0 or 3.0), addressed by variable names, with its log captured.
 
-A thin layer over fmpy's FMU2Slave / FMU2Model (which load the binary and expose the raw fmi2
-functions): name lookup, enumeration names, status codes instead of exceptions, and the log
-messages kept as a list so that callers can report or assert them.
+A thin layer over fmpy's FMU2Slave / FMU2Model / FMU3Slave / FMU3Model (which load the binary and
+instantiate it): name lookup, enumeration names, status codes instead of exceptions, and the log
+messages kept as a list so that callers can report or assert them. What differs between the
+versions is in harness/fmi/calls.py.
 """
 from __future__ import annotations
 
@@ -17,11 +18,16 @@ import numpy as np
 from fmpy import read_model_description
 from fmpy.fmi2 import (FMU2Model, FMU2Slave, fmi2CallbackAllocateMemoryTYPE, fmi2CallbackFreeMemoryTYPE,
                        fmi2CallbackFunctions, fmi2CallbackLoggerTYPE, fmi2LastSuccessfulTime)
+from fmpy.fmi3 import FMU3Model, FMU3Slave
 from fmpy.fmi1 import calloc, free
 
 from harness.archives import extract_fmu
 from harness.errors import HarnessError
 from harness.fmi.binaries import checked_identifier, elf_problem
+from harness.fmi.calls import FUNCTIONS, Calls, scalar_type
+
+# The x86_64 Linux binary's folder, per FMI version.
+PLATFORM_FOLDERS = {"2.0": "linux64", "3.0": "x86_64-linux"}
 
 STATUS_NAMES = ("OK", "Warning", "Discard", "Error", "Fatal", "Pending")
 OK, WARNING, DISCARD, ERROR, FATAL = 0, 1, 2, 3, 4
@@ -39,7 +45,8 @@ class LogMessage:
 
 @dataclass
 class LogCollector:
-    """fmi2 callbacks whose logger appends to this instance's messages.
+    """Callbacks whose logger appends to this instance's messages: fmi2's logger and memory
+    functions, and fmi3's log-message callback (FMI 3.0 has no memory callbacks).
 
     fmpy's native logger proxy (which formats printf arguments) keeps one logger for the whole
     process, so it is not used here: each instance keeps its own log. Messages arrive as the FMU
@@ -68,14 +75,17 @@ class LogCollector:
         self.callbacks.allocateMemory = self._allocate
         self.callbacks.freeMemory = self._free
 
+    def fmi3_log_message(self, environment, status, category, message) -> None:
+        self.messages.append(LogMessage(status, (category or b"").decode(), (message or b"").decode()))
+
 
 def _first_line(error: Exception) -> str:
     lines = str(error).strip().splitlines()
     return lines[0] if lines else type(error).__name__
 
 
-def read_fmi2_description(path: Path):
-    """fmpy's model description of an FMI 2.0 FMU; a one-line HarnessError for anything else."""
+def fmi_version(path: Path) -> str:
+    """The fmiVersion of an FMU file ("2.0" or "3.0"); a one-line HarnessError for anything else."""
     import xml.etree.ElementTree as ET
     from harness.archives import open_archive, read_member
     if not path.is_file():
@@ -88,8 +98,14 @@ def read_fmi2_description(path: Path):
         version = ET.fromstring(text).get("fmiVersion")
     except ET.ParseError as error:
         raise HarnessError(f"{path}: modelDescription.xml is not well-formed XML ({error})") from None
-    if version != "2.0":
-        raise HarnessError(f"{path}: an FMI {version} FMU; this harness runs FMI 2.0 FMUs")
+    if version not in PLATFORM_FOLDERS:
+        raise HarnessError(f"{path}: an FMI {version} FMU; this harness runs FMI 2.0 and 3.0 FMUs")
+    return version
+
+
+def read_description(path: Path):
+    """fmpy's model description of an FMI 2.0 or 3.0 FMU; a one-line HarnessError for anything else."""
+    fmi_version(path)
     try:
         return read_model_description(str(path))
     except Exception as error:  # fmpy raises plain exceptions for invalid files
@@ -115,42 +131,29 @@ def _number(name: str, value) -> float:
     raise HarnessError(f"{name} = {value!r} is not a number")
 
 
-_GETTER = ctypes.CFUNCTYPE(ctypes.c_int, ctypes.c_void_p, ctypes.c_void_p, ctypes.c_size_t, ctypes.c_void_p)
-_STEPPER = ctypes.CFUNCTYPE(ctypes.c_int, ctypes.c_void_p, ctypes.c_double, ctypes.c_double, ctypes.c_int)
-
-
-class RawCalls:
-    """fmi2GetReal, fmi2GetInteger and fmi2DoStep on their own prototypes (the same entry points as
-    fmpy's): arrays go in as plain addresses, so a loop can write straight into numpy rows."""
-
-    def __init__(self, dll, component) -> None:
-        def address(function) -> int:
-            return ctypes.cast(function, ctypes.c_void_p).value
-        self.component = ctypes.c_void_p(component)
-        self.get_real = _GETTER(address(dll.fmi2GetReal))
-        self.get_integer = _GETTER(address(dll.fmi2GetInteger))
-        self.set_real = _GETTER(address(dll.fmi2SetReal))  # same shape: (component, vr[], n, value[])
-        self.set_integer = _GETTER(address(dll.fmi2SetInteger))
-        self.do_step = _STEPPER(address(dll.fmi2DoStep))
-
-
 class FmuInstance:
-    """An instantiated FMU (Co-Simulation by default, Model Exchange with kind="ME")."""
+    """An instantiated FMU of either version (Co-Simulation by default, Model Exchange with kind="ME")."""
 
     def __init__(self, fmu: str | Path, kind: str = "CS", name: str = "instance", logging_on: bool = False,
                  unzipdir: str | None = None):
         self.path = Path(fmu)
         self.fmu = None
-        self._raw = None
+        self._raw: Calls | None = None
         self._items: dict[str, dict[str, int]] = {}
-        self.model_description = read_fmi2_description(self.path)
+        self.model_description = read_description(self.path)
+        self.version = self.model_description.fmiVersion
         self._extracted = unzipdir is None  # a folder this instance made, and removes when freed
-        self.unzipdir = unzipdir or str(extract_fmu(self.path))
+        self.unzipdir = unzipdir or str(extract_fmu(self.path, (PLATFORM_FOLDERS[self.version],)))
         try:
             self._load(kind, name, logging_on)
         except BaseException:
             self._remove_extracted()
             raise
+
+    @property
+    def prefix(self) -> str:
+        """fmi2 or fmi3: the prefix of this instance's C functions, for messages."""
+        return "fmi2" if self.version == "2.0" else "fmi3"
 
     def _load(self, kind: str, name: str, logging_on: bool) -> None:
         self.variables = {v.name: v for v in self.model_description.modelVariables}
@@ -159,23 +162,30 @@ class FmuInstance:
         if interface is None:
             raise HarnessError(f"{self.path}: the FMU does not support {kind}")
         identifier = checked_identifier(interface.modelIdentifier, str(self.path))
-        library = Path(self.unzipdir) / "binaries" / "linux64" / f"{identifier}.so"
+        folder = f"binaries/{PLATFORM_FOLDERS[self.version]}"
+        library = Path(self.unzipdir) / folder / f"{identifier}.so"
         if not library.is_file():
-            raise HarnessError(f"{self.path}: no binary for this platform (binaries/linux64/{library.name} is missing)")
+            raise HarnessError(f"{self.path}: no binary for this platform ({folder}/{library.name} is missing)")
         problem = elf_problem(library)
         if problem:
-            raise HarnessError(f"{self.path}: binaries/linux64/{library.name} {problem}")
-        cls = FMU2Slave if kind == "CS" else FMU2Model
+            raise HarnessError(f"{self.path}: {folder}/{library.name} {problem}")
+        fmi3 = self.version == "3.0"
+        cls = {(False, "CS"): FMU2Slave, (False, "ME"): FMU2Model, (True, "CS"): FMU3Slave, (True, "ME"): FMU3Model}
         try:
-            fmu = cls(guid=self.model_description.guid, unzipDirectory=self.unzipdir,
-                      modelIdentifier=interface.modelIdentifier, instanceName=name)
+            fmu = cls[fmi3, kind](guid=self.model_description.guid, unzipDirectory=self.unzipdir,
+                                  modelIdentifier=interface.modelIdentifier, instanceName=name)
         except Exception as error:  # fmpy raises plain exceptions when the binary cannot be loaded
             raise HarnessError(f"{self.path}: cannot load {library.name} ({_first_line(error)})") from None
         try:
-            fmu.instantiate(callbacks=self.log.callbacks, loggingOn=logging_on)
+            if fmi3:
+                fmu.instantiate(loggingOn=logging_on, logMessage=self.log.fmi3_log_message)
+            else:
+                fmu.instantiate(callbacks=self.log.callbacks, loggingOn=logging_on)
         except Exception:
             fmu.freeLibrary()
-            raise HarnessError(f"{self.path}: fmi2Instantiate failed: {self.last_message()}") from None
+            what = "fmi3Instantiate" + ("CoSimulation" if kind == "CS" else "ModelExchange") if fmi3 \
+                else "fmi2Instantiate"
+            raise HarnessError(f"{self.path}: {what} failed: {self.last_message()}") from None
         self.fmu = fmu
         self.kind = kind
 
@@ -186,92 +196,127 @@ class FmuInstance:
         except KeyError:
             raise HarnessError(f"{self.path.name} has no variable {name!r}") from None
 
+    def _variable(self, name: str):
+        variable = self.variables.get(name)
+        if variable is None:
+            raise HarnessError(f"{self.path.name} has no variable {name!r}")
+        return variable
+
     def _enumeration_items(self, variable) -> dict[str, int]:
         items = self._items.get(variable.name)
         if items is None:
             items = self._items[variable.name] = {item.name: int(item.value) for item in variable.declaredType.items}
         return items
 
-    def _encode(self, name: str, value) -> tuple[str, int | float]:
-        """The value as the FMI type of the variable: a number for a Real (a numeric string is read),
-        an integer in the 32-bit range for an Integer or Enumeration (an enumeration also by item
+    def _encode(self, name: str, value) -> int | float:
+        """The value as the FMI type of the variable: a number for a float (a numeric string is read),
+        an integer in the type's range for an integer or enumeration (an enumeration also by item
         name). Anything else is a HarnessError naming the variable, never a silent conversion."""
-        variable = self.variables.get(name)
-        if variable is None:
-            raise HarnessError(f"{self.path.name} has no variable {name!r}")
+        variable = self._variable(name)
         if variable.type == "Enumeration" and isinstance(value, str):
             items = self._enumeration_items(variable)
             if value in items:
-                return "Integer", items[value]
+                return items[value]
             if not is_number_text(value):
                 raise HarnessError(f"{name} = {value!r} is not one of {', '.join(items)}")
         number = _number(name, value)
-        if variable.type == "Real":
-            return "Real", number
+        scalar = scalar_type(self.version, variable)
+        if scalar.is_float:
+            return number
         if not math.isfinite(number) or number != int(number):
             raise HarnessError(f"{name} = {value!r} is not an integer ({variable.type})")
-        if not -2**31 <= number < 2**31:
-            raise HarnessError(f"{name} = {value!r} is outside the 32-bit integer range of an FMI {variable.type}")
-        return ("Boolean" if variable.type == "Boolean" else "Integer"), int(number)
+        if not scalar.smallest <= number <= scalar.largest:
+            raise HarnessError(f"{name} = {value!r} is outside the range of an FMI {self.version} {variable.type} "
+                               f"[{scalar.smallest}, {scalar.largest}]")
+        return int(number)
 
     def set(self, **values) -> int:
-        """Sets variables by name; returns the worst fmi2Status."""
+        """Sets variables by name; returns the worst status."""
         worst = OK
         raw = self.raw
         for name, value in values.items():
-            kind, encoded = self._encode(name, value)
+            encoded = self._encode(name, value)
+            scalar = scalar_type(self.version, self.variables[name])
             vr = ctypes.c_uint(self.reference(name))
-            if kind == "Real":
-                status = raw.set_real(raw.component, ctypes.byref(vr), 1, ctypes.byref(ctypes.c_double(encoded)))
-            elif kind == "Boolean":
-                status = self.call("fmi2SetBoolean", ctypes.byref(vr), 1, ctypes.byref(ctypes.c_int(encoded)))
-            else:
-                status = raw.set_integer(raw.component, ctypes.byref(vr), 1, ctypes.byref(ctypes.c_int(encoded)))
+            setter = raw.set_real if scalar.is_float else raw.values(scalar, True)
+            status = setter(raw.component, ctypes.byref(vr), 1, ctypes.byref(scalar.c_type(encoded)))
             worst = max(worst, status)
         return worst
 
     def get(self, *names: str) -> list[float]:
         values = []
         for name in names:
-            variable = self.variables.get(name)
-            if variable is None:
-                raise HarnessError(f"{self.path.name} has no variable {name!r}")
+            variable = self._variable(name)
+            scalar = scalar_type(self.version, variable)
             vr = (ctypes.c_uint * 1)(variable.valueReference)
-            if variable.type == "Real":
-                out = (ctypes.c_double * 1)()
-                status = self.call("fmi2GetReal", vr, 1, out)
-            else:
-                out = (ctypes.c_int * 1)()
-                status = self.call("fmi2GetInteger", vr, 1, out)
+            out = (scalar.c_type * 1)()
+            status = self.raw.values(scalar, False)(self.raw.component, vr, 1, out)
             if status > DISCARD:
-                raise HarnessError(f"fmi2Get of {name} returned {STATUS_NAMES[status]}: {self.last_message()}")
-            values.append(out[0])
+                raise HarnessError(f"{self.prefix}Get of {name} returned {STATUS_NAMES[status]}: {self.last_message()}")
+            values.append(out[0] if scalar.is_float else int(out[0]))
         return values
 
+    def integer_reader(self, names: list[str]) -> "IntegerReader":
+        """One call reading the integer variables `names` (all of one type: FMI 3.0's counters are
+        UInt64, FMI 2.0's Integer) into an array at an address."""
+        scalars = {self.variables[n].type: scalar_type(self.version, self.variables[n]) for n in names}
+        if len(scalars) > 1:
+            raise HarnessError(f"{self.path.name}: the integer outputs {', '.join(names)} are of several types "
+                               f"({', '.join(scalars)})")
+        type_name = next(iter(scalars), "Integer" if self.version == "2.0" else "UInt64")
+        scalar = scalar_type(self.version, _Typed(type_name))
+        vrs = (ctypes.c_uint * max(len(names), 1))(*[self.reference(n) for n in names])
+        return IntegerReader(np.dtype(scalar.c_type), self.raw.reader(scalar, vrs, len(names)), scalar.getter,
+                             vrs, self.raw.function(scalar.getter))
+
     @property
-    def raw(self) -> "RawCalls":
+    def raw(self) -> Calls:
         """Hot-loop entry points with plain-address prototypes, made once per instance."""
         if self._raw is None:
-            self._raw = RawCalls(self.fmu.dll, self.fmu.component)
+            self._raw = Calls(self.version, self.fmu.dll, self.fmu.component)
         return self._raw
 
     def call(self, function: str, *args) -> int:
-        """A raw fmi2 call by name, returning its status (fmpy's wrappers raise instead)."""
+        """A raw call by the C function's name, returning its status (fmpy's wrappers raise instead)."""
         # As c_void_p: for a function fmpy did not declare (a CS function on an ME instance) ctypes
         # would otherwise pass the handle as a 32-bit int.
         return getattr(self.fmu.dll, function)(self.raw.component, *args)
 
+    def role(self, role: str, *args) -> int:
+        """The function of a role (harness/fmi/calls.py: reset, get_state, ...) in this instance's version."""
+        return self.raw(role, *args)
+
     # ---- life cycle
+    def enter_initialization(self, start_time: float = 0.0, **start_values) -> None:
+        """Start values set and Initialization Mode entered, at start_time."""
+        if self.version == "2.0":
+            self._require(self.call("fmi2SetupExperiment", 0, 0.0, ctypes.c_double(start_time), 0, 0.0),
+                          "fmi2SetupExperiment")
+            self._require(self.set(**start_values), "setting start values")
+            self._require(self.call("fmi2EnterInitializationMode"), "fmi2EnterInitializationMode")
+        else:  # FMI 3.0 sets start values before the experiment's times
+            self._require(self.set(**start_values), "setting start values")
+            enter = ctypes.CFUNCTYPE(ctypes.c_int, ctypes.c_void_p, ctypes.c_bool, ctypes.c_double, ctypes.c_double,
+                                     ctypes.c_bool, ctypes.c_double)(
+                ctypes.cast(self.fmu.dll.fmi3EnterInitializationMode, ctypes.c_void_p).value)
+            self._require(enter(self.raw.component, False, 0.0, start_time, False, 0.0), "fmi3EnterInitializationMode")
+
+    def exit_initialization(self) -> None:
+        self._require(self.role("exit_initialization"), f"{self.prefix}ExitInitializationMode")
+
     def initialize(self, start_time: float = 0.0, **start_values) -> None:
-        self._require(self.call("fmi2SetupExperiment", 0, 0.0, start_time, 0, 0.0), "fmi2SetupExperiment")
-        self._require(self.set(**start_values), "setting start values")
-        self._require(self.call("fmi2EnterInitializationMode"), "fmi2EnterInitializationMode")
-        self._require(self.call("fmi2ExitInitializationMode"), "fmi2ExitInitializationMode")
+        self.enter_initialization(start_time, **start_values)
+        self.exit_initialization()
+
+    def reset(self) -> None:
+        self._require(self.role("reset"), f"{self.prefix}Reset")
 
     def do_step(self, t: float, H: float) -> int:
-        return self.call("fmi2DoStep", t, H, 1)
+        return self.raw.do_step(self.raw.component, t, H, 1)
 
     def last_successful_time(self) -> float:
+        if self.version == "3.0":
+            return self.raw.last_time.value
         value = ctypes.c_double()
         self.call("fmi2GetRealStatus", fmi2LastSuccessfulTime, ctypes.byref(value))
         return value.value
@@ -281,40 +326,44 @@ class FmuInstance:
         vrs = (ctypes.c_uint * n)(*[self.reference(name) for name in names])
         orders = (ctypes.c_int * n)(*([1] * n))
         out = (ctypes.c_double * n)()
-        self._require(self.call("fmi2GetRealOutputDerivatives", vrs, n, orders, out), "fmi2GetRealOutputDerivatives")
+        self._require(self.raw.output_derivatives()(self.raw.component, vrs, n, orders, out),
+                      FUNCTIONS[self.version]["output_derivatives"])
         return np.array(out[:])
 
     def set_input_derivatives(self, **slopes: float) -> int:
+        setter = self.raw.input_derivatives()
+        if setter is None:
+            raise HarnessError(f"{self.path.name} is an FMI {self.version} FMU, which takes no input derivatives")
         n = len(slopes)
         vrs = (ctypes.c_uint * n)(*[self.reference(name) for name in slopes])
         orders = (ctypes.c_int * n)(*([1] * n))
         values = (ctypes.c_double * n)(*slopes.values())
-        return self.call("fmi2SetRealInputDerivatives", vrs, n, orders, values)
+        return setter(self.raw.component, vrs, n, orders, values)
 
     # ---- FMU state
     def get_state(self) -> ctypes.c_void_p:
         state = ctypes.c_void_p()
-        self._require(self.call("fmi2GetFMUstate", ctypes.byref(state)), "fmi2GetFMUstate")
+        self._require(self.role("get_state", ctypes.byref(state)), FUNCTIONS[self.version]["get_state"])
         return state
 
     def set_state(self, state: ctypes.c_void_p) -> None:
-        self._require(self.call("fmi2SetFMUstate", state), "fmi2SetFMUstate")
+        self._require(self.role("set_state", state), FUNCTIONS[self.version]["set_state"])
 
     def free_state(self, state: ctypes.c_void_p) -> None:
-        self._require(self.call("fmi2FreeFMUstate", ctypes.byref(state)), "fmi2FreeFMUstate")
+        self._require(self.role("free_state", ctypes.byref(state)), FUNCTIONS[self.version]["free_state"])
 
     def serialize(self, state: ctypes.c_void_p) -> bytes:
         size = ctypes.c_size_t()
-        self._require(self.call("fmi2SerializedFMUstateSize", state, ctypes.byref(size)), "fmi2SerializedFMUstateSize")
+        self._require(self.role("state_size", state, ctypes.byref(size)), FUNCTIONS[self.version]["state_size"])
         buffer = ctypes.create_string_buffer(size.value)
-        self._require(self.call("fmi2SerializeFMUstate", state, buffer, size), "fmi2SerializeFMUstate")
+        self._require(self.role("serialize", state, buffer, size), FUNCTIONS[self.version]["serialize"])
         return buffer.raw
 
     def deserialize(self, data: bytes) -> ctypes.c_void_p:
         state = ctypes.c_void_p()
         buffer = ctypes.create_string_buffer(bytes(data), len(data))
-        self._require(self.call("fmi2DeSerializeFMUstate", buffer, len(data), ctypes.byref(state)),
-                      "fmi2DeSerializeFMUstate")
+        self._require(self.role("deserialize", buffer, len(data), ctypes.byref(state)),
+                      FUNCTIONS[self.version]["deserialize"])
         return state
 
     # ---- log
@@ -341,3 +390,18 @@ class FmuInstance:
 
     def __exit__(self, *exc) -> None:
         self.free()
+
+
+@dataclass(frozen=True)
+class _Typed:
+    type: str
+    name: str = "(none)"
+
+
+@dataclass(frozen=True)
+class IntegerReader:
+    dtype: np.dtype
+    read: object  # read(address) -> status
+    function: str  # the C function it calls, for messages
+    vrs: object    # the value references, for a C loop
+    address: int   # that function's address, for a C loop

@@ -13,6 +13,14 @@ from harness.processes import run_program
 
 # Every object file in modelDescription/ and the hand-written models beside them.
 FMU_NAMES = object_names() + handwritten_names()
+# A project FMU in FMI 3.0 is named as it lies in the build: fmi3/<name>.
+FMI3_FOLDER = "fmi3"
+
+
+def project_fmu_name(name: str) -> bool:
+    """One of the project's FMUs: <name> (FMI 2.0) or fmi3/<name> (FMI 3.0)."""
+    folder, _, model = name.rpartition("/")
+    return model in FMU_NAMES and folder in ("", FMI3_FOLDER)
 
 
 def build_dir() -> Path:
@@ -41,14 +49,16 @@ def build_fmus(quiet: bool = True) -> None:
 
 
 def locate_fmu(name: str, build_if_missing: bool = True) -> Path:
-    """Path of build/fmus/<name>.fmu; a path to an existing .fmu is returned as it is."""
+    """Path of build/fmus/<name>.fmu (a name such as SimplePendulum, or fmi3/SimplePendulum for FMI 3.0);
+    a path to an existing .fmu is returned as it is."""
     candidate = Path(name)
     if candidate.suffix == ".fmu":
         if not candidate.is_file():
             raise HarnessError(f"{candidate}: no such FMU file")
         return candidate
-    if name not in FMU_NAMES:
-        raise HarnessError(f"unknown FMU {name!r}: expected a .fmu path or one of {', '.join(FMU_NAMES)}")
+    if not project_fmu_name(name):
+        raise HarnessError(f"unknown FMU {name!r}: expected a .fmu path or one of {', '.join(FMU_NAMES)} "
+                           f"(FMI 2.0; {FMI3_FOLDER}/<name> for FMI 3.0)")
     path = build_dir() / "fmus" / f"{name}.fmu"
     if not path.is_file() and build_if_missing:
         build_fmus()

@@ -15,6 +15,7 @@ from pathlib import Path
 import numpy as np
 
 from harness.errors import HarnessError
+from harness.fmi.calls import is_float
 from harness.fmi.fmu_instance import DISCARD, ERROR, STATUS_NAMES, FmuInstance
 from harness.fmi.results import TimeTable
 
@@ -106,23 +107,24 @@ def simulate(fmu: str | Path, stop_time: float, step: float = 0.01, start_time: 
 
 class Recorder:
     """The stepping loop of one instance over one grid, prepared once and run as often as needed
-    (after each fmi2Reset and initialization): fmi2GetReal writes straight into the rows of a
+    (after each reset and initialization): the get-float call writes straight into the rows of a
     preallocated table through the instance's own prototypes. This is the loop the sweeps and the
     benchmarks time."""
 
     def __init__(self, instance: FmuInstance, grid: np.ndarray, outputs: list[str]):
         self.instance = instance
-        real_names = [n for n in outputs if instance.variables[n].type == "Real"]
+        real_names = [n for n in outputs if is_float(instance.variables[n])]
         integer_names = [n for n in outputs if n not in real_names]
         self.columns = ["time"] + real_names + integer_names
         check_table_size(len(grid), len(self.columns))
         self.n_real, self.n_int = len(real_names), len(integer_names)
         self.real_vrs = (ctypes.c_uint * self.n_real)(*[instance.reference(n) for n in real_names])
-        self.integer_vrs = (ctypes.c_uint * self.n_int)(*[instance.reference(n) for n in integer_names])
         self.grid = np.asarray(grid, dtype=float)
         self.times = self.grid.tolist()
         self.reals = np.zeros((len(grid), max(self.n_real, 1)))
-        self.integers = np.zeros((len(grid), max(self.n_int, 1)), dtype=np.intc)
+        integers = instance.integer_reader(integer_names)
+        self.read_integers = integers.read
+        self.integers = np.zeros((len(grid), max(self.n_int, 1)), dtype=integers.dtype)
         # row addresses, computed once
         self.real_rows = (self.reals.__array_interface__["data"][0] + self.reals.strides[0] * np.arange(len(grid))).tolist()
         self.int_rows = (self.integers.__array_interface__["data"][0]
@@ -132,15 +134,15 @@ class Recorder:
         instance = self.instance
         name = instance.path.name
         raw = instance.raw
-        component, get_real, get_integer, do_step = raw.component, raw.get_real, raw.get_integer, raw.do_step
-        real_vrs, integer_vrs, n_real, n_int = self.real_vrs, self.integer_vrs, self.n_real, self.n_int
+        component, get_real, read_integers, do_step = raw.component, raw.get_real, self.read_integers, raw.do_step
+        real_vrs, n_real, n_int = self.real_vrs, self.n_real, self.n_int
         real_rows, int_rows, times = self.real_rows, self.int_rows, self.times
         discarded_at = None
 
         def record(row: int) -> None:
             status = get_real(component, real_vrs, n_real, real_rows[row])
             if n_int:
-                status = max(status, get_integer(component, integer_vrs, n_int, int_rows[row]))
+                status = max(status, read_integers(int_rows[row]))
             if status >= ERROR:
                 raise HarnessError(f"{name}: reading outputs returned {STATUS_NAMES[status]}: "
                                    f"{instance.last_message()}")
@@ -161,7 +163,7 @@ class Recorder:
                         rows = i + 1
                     break
                 if status >= ERROR:
-                    raise HarnessError(f"{name}: fmi2DoStep at t = {t} returned {STATUS_NAMES[status]}: "
+                    raise HarnessError(f"{name}: {instance.prefix}DoStep at t = {t} returned {STATUS_NAMES[status]}: "
                                        f"{instance.last_message()}")
                 record(i)
                 if progress is not None and not i & 63:

@@ -12,7 +12,8 @@ from pathlib import Path
 import numpy as np
 
 from harness.errors import HarnessError
-from harness.fmi.fmu_instance import ERROR, OK, FmuInstance, read_fmi2_description
+from harness.fmi.calls import is_float
+from harness.fmi.fmu_instance import ERROR, OK, FmuInstance, read_description
 from harness.objects.proof import object_file_in, prove
 from harness.objects.thesis.reference import exact_simple_pendulum, slope
 
@@ -33,7 +34,7 @@ class Check:
 def _model_description_checks(path: Path) -> list[Check]:
     from fmpy.validation import validate_fmu
     try:
-        read_fmi2_description(path)
+        read_description(path)
     except HarnessError as error:
         return [Check(path.name, "modelDescription (fmpy)", False, str(error))]
     problems = validate_fmu(str(path))
@@ -50,7 +51,7 @@ def _finite_outputs(instance: FmuInstance) -> tuple[bool, str]:
 
 def _runtime_checks(path: Path) -> list[Check]:
     checks = []
-    md = read_fmi2_description(path)
+    md = read_description(path)
     step = md.defaultExperiment.stepSize if md.defaultExperiment and md.defaultExperiment.stepSize else 0.01
     step = float(step)
 
@@ -59,16 +60,17 @@ def _runtime_checks(path: Path) -> list[Check]:
 
     with FmuInstance(path) as fmu:
         status = fmu.do_step(0.0, step)
-        check("illegal call refused", status == ERROR, f"fmi2DoStep before initialization returned status {status}")
+        check("illegal call refused", status == ERROR,
+              f"{fmu.prefix}DoStep before initialization returned status {status}")
     with FmuInstance(path) as fmu:
         fmu.initialize()
         statuses = [fmu.do_step(i * step, step) for i in range(10)]
         check("Co-Simulation steps", all(s == OK for s in statuses), f"10 steps of {step:g} s: statuses {set(statuses)}")
         check("outputs finite", *_finite_outputs(fmu))
         check("time exact", fmu.last_successful_time() == 9 * step + step,
-              f"after fmi2DoStep({9 * step!r}, {step!r}) the FMU's time is {fmu.last_successful_time()!r}")
+              f"after {fmu.prefix}DoStep({9 * step!r}, {step!r}) the FMU's time is {fmu.last_successful_time()!r}")
         if md.coSimulation.canGetAndSetFMUstate:
-            names = [v.name for v in md.modelVariables if v.causality == "output" and v.type == "Real"]
+            names = [v.name for v in md.modelVariables if v.causality == "output" and is_float(v)]
             state = fmu.get_state()
             data = fmu.serialize(state) if md.coSimulation.canSerializeFMUstate else None
             for i in range(10, 15):
@@ -85,14 +87,13 @@ def _runtime_checks(path: Path) -> list[Check]:
                 check("serialized FMU state", fmu.get(*names) == expected,
                       f"{len(data)} bytes restore and continue bit-identically")
             fmu.free_state(state)
-        check("reset", fmu.call("fmi2Reset") == OK, "fmi2Reset returns the instance to its start values")
+        check("reset", fmu.role("reset") == OK, f"{fmu.prefix}Reset returns the instance to its start values")
     if md.modelExchange is not None:
         with FmuInstance(path, kind="ME") as fmu:
             fmu.initialize()
             n = md.numberOfContinuousStates
             derivatives = (ctypes.c_double * max(n, 1))()
-            status = fmu.call("fmi2EnterContinuousTimeMode")
-            status = max(status, fmu.call("fmi2GetDerivatives", derivatives, n))
+            status = max(fmu.role("continuous_time_mode"), fmu.role("derivatives", derivatives, n))
             finite = all(math.isfinite(v) for v in derivatives[:n])
             check("Model Exchange", status == OK and finite, f"{n} state derivatives, status {status}")
     return checks
@@ -109,9 +110,9 @@ def _physics_checks(path: Path, name: str) -> list[Check]:
         derivatives = (ctypes.c_double * n)()
         for _ in range(20):
             point = random_point(name, rng)
-            fmu.call("fmi2Reset")
+            fmu.reset()
             fmu.initialize(**point)
-            fmu.call("fmi2GetDerivatives", derivatives, n)
+            fmu.role("derivatives", derivatives, n)
             expected = np.array(reference(*[point[k] for k in names])[:len(q)])
             worst = max(worst, float(np.max(np.abs(np.array(derivatives[len(q):]) - expected)
                                             / (1 + np.abs(expected)))))
@@ -146,7 +147,7 @@ def validate(path: str | Path) -> list[Check]:
         spec = object_file_in(path)
         if spec is not None:
             checks += [Check(path.name, proof.name, proof.passed, proof.detail) for proof in prove(path, spec)]
-        model = read_fmi2_description(path).modelName
+        model = read_description(path).modelName
         if model in PENDULUMS:
             checks += _physics_checks(path, model)
     except HarnessError as error:

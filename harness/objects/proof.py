@@ -24,7 +24,7 @@ from pathlib import Path
 import numpy as np
 
 from harness.errors import HarnessError
-from harness.fmi.fmu_instance import OK, FmuInstance, read_fmi2_description
+from harness.fmi.fmu_instance import OK, FmuInstance, read_description
 from harness.fmi.methods import METHODS
 from harness.objects.numeric_route import NumericLagrangian
 from harness.objects.object_file import FRAMEWORK_PARAMETERS, ObjectFileError, ObjectSpec, read_object_file
@@ -44,7 +44,7 @@ class Proof:
 def object_file_in(fmu: str | Path) -> ObjectSpec | None:
     """The object file an FMU carries, or None for an FMU not made from one."""
     fmu = Path(fmu)
-    md = read_fmi2_description(fmu)
+    md = read_description(fmu)
     interface = md.coSimulation or md.modelExchange
     member = f"sources/{interface.modelIdentifier}.toml"
     with zipfile.ZipFile(fmu) as archive:
@@ -116,18 +116,17 @@ def numeric_route_agreement(fmu: Path, spec: ObjectSpec, samples: int, seed: int
         while done < samples and tries < 10 * samples:
             tries += 1
             values = random_values(spec, rng)
-            instance.call("fmi2Reset")
+            instance.reset()
             instance.initialize(start_time=values["t"], **{name: values[name] for name in parameters})
             states = [values[c.name] for c in spec.coordinates] + [values[c.velocity] for c in spec.coordinates]
             derivatives = (ctypes.c_double * (2 * n))()
-            status = max(instance.call("fmi2EnterContinuousTimeMode"),
-                         instance.call("fmi2SetTime", ctypes.c_double(values["t"])),
-                         instance.call("fmi2SetContinuousStates", (ctypes.c_double * (2 * n))(*states), 2 * n),
+            status = max(instance.role("continuous_time_mode"), instance.role("set_time", values["t"]),
+                         instance.role("set_states", (ctypes.c_double * (2 * n))(*states), 2 * n),
                          instance.set(**{name: values[name] for name in inputs}))
             if status != OK:
                 problems.append(f"setting a state returned {status}: {instance.last_message()}")
                 break
-            if instance.call("fmi2GetDerivatives", derivatives, 2 * n) != OK:
+            if instance.role("derivatives", derivatives, 2 * n) != OK:
                 continue  # a singular sample (outside `require`): the FMU said so; draw another
             expected = route.accelerations(values, values["t"])
             got = np.array(derivatives[n:])
@@ -161,7 +160,7 @@ def _states_and_energy(instance: FmuInstance, spec: ObjectSpec) -> tuple[np.ndar
 def _run(instance: FmuInstance, spec: ObjectSpec, duration: float, **settings) -> tuple[np.ndarray, float, float]:
     """States and energy at `duration`, and the energy at the start; d = 0, no forces. A run the FMU
     discards (a coarse step may leave the method's stability region) gives NaN."""
-    instance.call("fmi2Reset")
+    instance.reset()
     instance.initialize(d=0.0, **settings)
     _, start_energy = _states_and_energy(instance, spec)
     if instance.do_step(0.0, duration) != OK:

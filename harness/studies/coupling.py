@@ -66,12 +66,13 @@ class CoupledPendulums:
         """The physics of `system`, which must be exactly this scene: two of the project's
         SimplePendulums, nonlinear, and one Spring whose ends read each bob's position and velocity
         and whose forces act on those bobs. Anything else has another reference (HarnessError)."""
-        from harness.fmi.fmu_instance import read_fmi2_description
+        from harness.fmi.calls import is_float
+        from harness.fmi.fmu_instance import read_description
 
         def values(component) -> tuple[str, dict]:
-            description = read_fmi2_description(component.fmu)
+            description = read_description(component.fmu)
             merged = {v.name: float(v.start) for v in description.modelVariables
-                      if v.type == "Real" and v.start is not None}
+                      if is_float(v) and v.start is not None}
             merged.update({k: v for k, v in component.start.items() if not isinstance(v, str)})
             return description.coSimulation.modelIdentifier, merged
         needs = f"{system.name}: the coupling reference knows one scene only: two SimplePendulums whose bobs are " \

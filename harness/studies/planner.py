@@ -34,7 +34,8 @@ import numpy as np
 
 from harness.cosim.structure import Component, System
 from harness.errors import HarnessError
-from harness.fmi.fmu_instance import read_fmi2_description
+from harness.fmi.calls import is_float
+from harness.fmi.fmu_instance import read_description
 from harness.fmi.methods import ORDER
 from harness.objects.proof import object_file_in
 from harness.objects.thesis.equations import OUTER_MASS, Pendulum
@@ -63,8 +64,8 @@ THESIS_PENDULUMS = tuple(OUTER_MASS)
 
 def object_parameters(component: Component) -> dict[str, float]:
     """The FMU's Real start values with the scene's overrides."""
-    description = read_fmi2_description(component.fmu)
-    values = {v.name: float(v.start) for v in description.modelVariables if v.type == "Real" and v.start is not None}
+    description = read_description(component.fmu)
+    values = {v.name: float(v.start) for v in description.modelVariables if is_float(v) and v.start is not None}
     values.update({k: float(v) for k, v in component.start.items() if not isinstance(v, str)})
     return values
 
@@ -132,7 +133,7 @@ def _predict(runner: ObjectRunner, method: str, h: float, tolerance: float) -> t
 def plan_object(job: tuple[Component, float, float, float, list, dict]) -> ObjectPlan:
     """Plans one independent object (runs in a worker; `tables` are method_tables(), read by the caller)."""
     component, duration, frame, tolerance, columns, tables = job
-    kind = read_fmi2_description(component.fmu).coSimulation.modelIdentifier
+    kind = read_description(component.fmu).coSimulation.modelIdentifier
     eigenvalues = object_eigenvalues(kind, component)
     reference, _ = reference_positions(component, kind, duration, frame, columns, tolerance, eigenvalues)
     runner = ObjectRunner(component, duration, frame, columns)

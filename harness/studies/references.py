@@ -14,7 +14,7 @@ from pathlib import Path
 import numpy as np
 
 from harness.cosim.structure import Component
-from harness.fmi.fmu_instance import FmuInstance, read_fmi2_description
+from harness.fmi.fmu_instance import FmuInstance, read_description
 from harness.fmi.simulation import Recorder, communication_grid
 from harness.objects.proof import object_file_in
 from harness.objects.thesis.equations import OUTER_MASS
@@ -26,7 +26,7 @@ REFERENCE_METHOD, REFERENCE_ORDER = "nystrom5", 5
 def traced_columns(fmu: str | Path) -> tuple[str, ...]:
     """The output names of the point the studies trace by default: the thesis pendulums' outer mass,
     any other object's last point (x, y and, for a 3-D point, z)."""
-    kind = read_fmi2_description(Path(fmu)).coSimulation.modelIdentifier
+    kind = read_description(Path(fmu)).coSimulation.modelIdentifier
     if kind in OUTER_MASS:
         return OUTER_MASS[kind]
     spec = object_file_in(fmu)
@@ -62,7 +62,7 @@ class ObjectRunner:
     def run(self, overrides: dict) -> tuple[np.ndarray, int]:
         """Positions (frames, points, width) and the evaluations spent; inf positions after a discard."""
         instance = self.instance
-        instance._require(instance.call("fmi2Reset"), "fmi2Reset")
+        instance.reset()
         instance.initialize(0.0, **{**self.component.start, **overrides})
         result = self.recorder.run()
         width = len(self.columns[0])

@@ -171,13 +171,13 @@ class Probe:
         self.runs = 0
         self.instance.initialize(0.0, d=case.damping, **case.rest)
         self.rest_energy = self.instance.get("E")[0]
-        self.instance.call("fmi2Reset")
+        self.instance.reset()
 
     def stable(self, n: int) -> bool:
         from harness.fmi.fmu_instance import OK
         self.runs += 1
         case, instance = self.case, self.instance
-        instance.call("fmi2Reset")
+        instance.reset()
         instance.initialize(0.0, solver=self.method, h=case.window / n, d=case.damping, **case.start)
         start = instance.get("E")[0] - self.rest_energy
         if instance.do_step(0.0, case.window) != OK:

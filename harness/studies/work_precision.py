@@ -25,7 +25,8 @@ from pathlib import Path
 import numpy as np
 
 from harness.cosim.structure import Component
-from harness.fmi.fmu_instance import FmuInstance, read_fmi2_description
+from harness.fmi.calls import is_float
+from harness.fmi.fmu_instance import FmuInstance, read_description
 from harness.fmi.methods import FIXED_STEP, ORDER
 from harness.fmi.simulation import Recorder, communication_grid
 from harness.objects.derivation import derive
@@ -77,7 +78,7 @@ class Task:
 def step_scale(fmu: str | Path) -> int:
     """The power of two by which an object's fixed steps are finer than the thesis pendulums', from its
     default step (0.008 s for theirs)."""
-    default_h = next(float(v.start) for v in read_fmi2_description(Path(fmu)).modelVariables if v.name == "h")
+    default_h = next(float(v.start) for v in read_description(Path(fmu)).modelVariables if v.name == "h")
     return 2 ** max(0, round(math.log2(0.008 / default_h)))
 
 
@@ -114,7 +115,7 @@ class TracedReference:
 
 def reference_for(fmu: str) -> TracedReference:
     """The tight reference of an FMU's default run."""
-    name = read_fmi2_description(Path(fmu)).coSimulation.modelIdentifier
+    name = read_description(Path(fmu)).coSimulation.modelIdentifier
     if name in OUTER_MASS:
         reference = tight_reference(Pendulum.from_fmu(fmu), STOP, STEP, REFERENCE_SUBSTEPS[name])
         return TracedReference(reference.positions, reference.estimated_error)
@@ -127,10 +128,10 @@ def reference_for(fmu: str) -> TracedReference:
 def peer_equations(fmu: str) -> Pendulum | ObjectMotion:
     """The equations the scipy peers integrate: hand-coded for the thesis pendulums, the SymPy
     derivation's for every other object; values are the FMU's start values."""
-    description = read_fmi2_description(Path(fmu))
+    description = read_description(Path(fmu))
     if description.coSimulation.modelIdentifier in OUTER_MASS:
         return Pendulum.from_fmu(fmu)
-    values = {v.name: float(v.start) for v in description.modelVariables if v.type == "Real" and v.start is not None}
+    values = {v.name: float(v.start) for v in description.modelVariables if is_float(v) and v.start is not None}
     return ObjectMotion(derive(object_file_in(fmu)), values)
 
 
@@ -158,7 +159,7 @@ def _fmu_point(task: Task, reference: TracedReference) -> Point:
         recorder = Recorder(instance, grid, list(columns))
 
         def run():
-            instance._require(instance.call("fmi2Reset"), "fmi2Reset")
+            instance.reset()
             instance.initialize(0.0, **start)
             return recorder.run()
         seconds, result = _median_seconds(run, task.repeats)

@@ -1,34 +1,92 @@
 /* The fixed-step inner loop of the harness's master, in C: for each macro step set the inputs,
  * step the FMUs (Jacobi or Gauss-Seidel, inputs held or extrapolated linearly) and record a row.
- * Python prepares everything (instances, buffers, routes; the fmi2 function pointers are the ones
- * fmpy loaded) and keeps everything else: initialization, iteration, step doubling, rollback,
- * messages. Semantics are those of harness/cosim/master.py, which the tests compare against. */
+ * Python prepares everything (instances, buffers, routes; the function pointers are the ones fmpy
+ * loaded, of FMI 2.0 or 3.0 per unit) and keeps everything else: initialization, iteration, step
+ * doubling, rollback, messages. Semantics are those of harness/cosim/master.py, which the tests
+ * compare against. */
+#include <stdbool.h>
 #include <stddef.h>
+#include <stdint.h>
 
-typedef int (*SetReal)(void *, const unsigned *, size_t, const double *);
-typedef int (*GetReal)(void *, const unsigned *, size_t, double *);
-typedef int (*GetInteger)(void *, const unsigned *, size_t, int *);
-typedef int (*DoStep)(void *, double, double, int);
-typedef int (*SetDerivatives)(void *, const unsigned *, size_t, const int *, const double *);
-typedef int (*GetDerivatives)(void *, const unsigned *, size_t, const int *, double *);
+/* FMI 2.0's shapes */
+typedef int (*SetReal2)(void *, const unsigned *, size_t, const double *);
+typedef int (*GetReal2)(void *, const unsigned *, size_t, double *);
+typedef int (*GetInteger2)(void *, const unsigned *, size_t, void *);
+typedef int (*DoStep2)(void *, double, double, int);
+typedef int (*SetDerivatives2)(void *, const unsigned *, size_t, const int *, const double *);
+typedef int (*GetDerivatives2)(void *, const unsigned *, size_t, const int *, double *);
+/* FMI 3.0's: every get and set also takes the number of values; no input derivatives */
+typedef int (*SetFloat3)(void *, const unsigned *, size_t, const double *, size_t);
+typedef int (*GetFloat3)(void *, const unsigned *, size_t, double *, size_t);
+typedef int (*GetInteger3)(void *, const unsigned *, size_t, void *, size_t);
+typedef int (*DoStep3)(void *, double, double, bool, bool *, bool *, bool *, double *);
+typedef int (*GetDerivatives3)(void *, const unsigned *, size_t, const int *, double *, size_t);
+
+enum { INTEGER_32 = 0, INTEGER_64 = 1, UNSIGNED_64 = 2 };
 
 typedef struct {
     void *component;
-    SetReal set_real;
-    GetReal get_real;
-    GetInteger get_integer;
-    DoStep do_step;
-    SetDerivatives set_derivatives;
-    GetDerivatives get_derivatives;
+    void *set_real, *get_real, *get_integer, *do_step, *set_derivatives, *get_derivatives;
     int n_out, n_in, n_int;
     const unsigned *out_vrs, *in_vrs, *int_vrs;
     const int *orders_out, *orders_in;
     double *y_now, *dy_now, *y_next, *dy_next, *u, *du;
-    int *ints;
+    void *ints;              /* n_int integers of integer_kind */
     const int *source_unit;  /* per input: index of the unit that feeds it */
     const int *source_index; /* per input: index of that unit's output */
     int energy_index;        /* output holding the unit's energy, -1 for none */
+    int fmi3;                /* the function pointers are FMI 3.0's */
+    int integer_kind;        /* INTEGER_32, INTEGER_64 or UNSIGNED_64 */
+    double *last_time;       /* FMI 3.0: where fmi3DoStep's lastSuccessfulTime goes */
 } CoreUnit;
+
+static int set_inputs(CoreUnit *unit)
+{
+    return unit->fmi3 ? ((SetFloat3)unit->set_real)(unit->component, unit->in_vrs, (size_t)unit->n_in, unit->u,
+                                                   (size_t)unit->n_in)
+                      : ((SetReal2)unit->set_real)(unit->component, unit->in_vrs, (size_t)unit->n_in, unit->u);
+}
+
+static int get_outputs(CoreUnit *unit)
+{
+    return unit->fmi3 ? ((GetFloat3)unit->get_real)(unit->component, unit->out_vrs, (size_t)unit->n_out,
+                                                   unit->y_next, (size_t)unit->n_out)
+                      : ((GetReal2)unit->get_real)(unit->component, unit->out_vrs, (size_t)unit->n_out, unit->y_next);
+}
+
+static int get_output_derivatives(CoreUnit *unit)
+{
+    const size_t n = (size_t)unit->n_out;
+    return unit->fmi3 ? ((GetDerivatives3)unit->get_derivatives)(unit->component, unit->out_vrs, n, unit->orders_out,
+                                                                unit->dy_next, n)
+                      : ((GetDerivatives2)unit->get_derivatives)(unit->component, unit->out_vrs, n, unit->orders_out,
+                                                                unit->dy_next);
+}
+
+static int do_step(CoreUnit *unit, double t, double H)
+{
+    if (unit->fmi3) {
+        bool event = false, terminate = false, early = false;
+        return ((DoStep3)unit->do_step)(unit->component, t, H, true, &event, &terminate, &early, unit->last_time);
+    }
+    return ((DoStep2)unit->do_step)(unit->component, t, H, 1);
+}
+
+static int get_integers(CoreUnit *unit)
+{
+    const size_t n = (size_t)unit->n_int;
+    return unit->fmi3 ? ((GetInteger3)unit->get_integer)(unit->component, unit->int_vrs, n, unit->ints, n)
+                      : ((GetInteger2)unit->get_integer)(unit->component, unit->int_vrs, n, unit->ints);
+}
+
+static double integer_value(const CoreUnit *unit, int i)
+{
+    switch (unit->integer_kind) {
+    case INTEGER_64: return (double)((const int64_t *)unit->ints)[i];
+    case UNSIGNED_64: return (double)((const uint64_t *)unit->ints)[i];
+    default: return ((const int *)unit->ints)[i];
+    }
+}
 
 enum { CORE_OK = 0, CORE_DISCARD = 2, CORE_ERROR = 3 };
 
@@ -48,19 +106,20 @@ static int feed(CoreUnit *units, int k, double H, int linear, const int *stepped
             if (linear) unit->du[i] = source->dy_now[o];
         }
     }
-    status = unit->set_real(unit->component, unit->in_vrs, (size_t)unit->n_in, unit->u);
+    status = set_inputs(unit);
     if (status >= CORE_ERROR || !linear) return status;
-    return unit->set_derivatives(unit->component, unit->in_vrs, (size_t)unit->n_in, unit->orders_in, unit->du);
+    /* linear only where every receiver is FMI 2.0 (the master refuses it otherwise) */
+    return ((SetDerivatives2)unit->set_derivatives)(unit->component, unit->in_vrs, (size_t)unit->n_in,
+                                                    unit->orders_in, unit->du);
 }
 
 static int step_and_read(CoreUnit *unit, double t, double H, int linear)
 {
-    int status = unit->do_step(unit->component, t, H, 1);
+    int status = do_step(unit, t, H);
     if (status != CORE_OK && status != 1) return status;
-    status = unit->get_real(unit->component, unit->out_vrs, (size_t)unit->n_out, unit->y_next);
+    status = get_outputs(unit);
     if (status >= CORE_ERROR || !linear) return status;
-    return unit->get_derivatives(unit->component, unit->out_vrs, (size_t)unit->n_out, unit->orders_out,
-                                 unit->dy_next);
+    return get_output_derivatives(unit);
 }
 
 static int record(CoreUnit *units, int n_units, double t, double *row, double *energy)
@@ -74,10 +133,8 @@ static int record(CoreUnit *units, int n_units, double t, double *row, double *e
     }
     for (k = 0; k < n_units; k++) {
         if (!units[k].n_int) continue;
-        if (units[k].get_integer(units[k].component, units[k].int_vrs, (size_t)units[k].n_int, units[k].ints) >=
-            CORE_ERROR)
-            return CORE_ERROR;
-        for (i = 0; i < units[k].n_int; i++) row[column++] = units[k].ints[i];
+        if (get_integers(&units[k]) >= CORE_ERROR) return CORE_ERROR;
+        for (i = 0; i < units[k].n_int; i++) row[column++] = integer_value(&units[k], i);
     }
     *energy = total;
     return CORE_OK;

@@ -1,0 +1,203 @@
+"""The harness runs FMI 3.0 FMUs as it runs FMI 2.0 ones, and mixes both in one system.
+
+The FMI 3.0 and 2.0 FMUs of an object share their C core, so every comparison here is exact: any
+difference is the harness calling one version differently from the other."""
+from __future__ import annotations
+
+import dataclasses
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from harness.cosim.master import Master, MasterOptions
+from harness.cosim.structure import Component, Connection, System
+from harness.cosim.system import load_system
+from harness.errors import HarnessError
+from harness.fmi.fmu_instance import FmuInstance
+from harness.fmi.fmus import FMU_NAMES, PROJECT_ROOT, build_dir, locate_fmu
+from harness.fmi.simulation import simulate
+
+SCENE = PROJECT_ROOT / "scenes" / "coupled_pendulums.json"
+
+
+def fmi3(name: str) -> Path:
+    return build_dir() / "fmus" / "fmi3" / f"{name}.fmu"
+
+
+@pytest.mark.parametrize("name", FMU_NAMES)
+def test_simulate_gives_the_fmi2_table_bit_for_bit(fmu_paths, name):
+    start = {} if name == "Spring" else {"solver": "rkf45"}  # adaptive: the counters differ by object
+    two = simulate(fmu_paths[name], 1.0, 0.01, start_values=start)
+    three = simulate(fmi3(name), 1.0, 0.01, start_values=start)
+    assert three.columns == two.columns
+    assert np.array_equal(three.values, two.values)
+
+
+def test_a_discard_reports_the_same_time_and_message(fmu_paths):
+    start = {"h": 0.001, "psi_dot": 0.0}  # the plane swing reaches the pole, where psi is undefined
+    two = simulate(fmu_paths["SphericalPendulum"], 5.0, 0.01, start_values=start)
+    three = simulate(fmi3("SphericalPendulum"), 5.0, 0.01, start_values=start)
+    assert two.discarded_at is not None and three.discarded_at == two.discarded_at
+    assert np.array_equal(three.values, two.values)
+    assert three.messages[-1] == two.messages[-1].replace("fmi2DoStep", "fmi3DoStep")
+    assert three.messages[-1].startswith("[Discard] fmi3DoStep:") and "singular" in three.messages[-1]
+
+
+def test_fmu_state_serialized_and_restored_continues_the_run(fmu_paths):
+    with FmuInstance(fmi3("DoublePendulum")) as instance:
+        instance.initialize(0.0, solver="ab4")
+        for k in range(10):
+            assert instance.do_step(0.01 * k, 0.01) == 0
+        data = instance.serialize(instance.get_state())
+        for k in range(10, 20):
+            instance.do_step(0.01 * k, 0.01)
+        ahead = instance.get("phi1", "omega2", "n_rhs")
+        state = instance.deserialize(data)
+        instance.set_state(state)
+        instance.free_state(state)
+        for k in range(10, 20):
+            instance.do_step(0.01 * k, 0.01)
+        assert instance.get("phi1", "omega2", "n_rhs") == ahead
+        assert isinstance(ahead[2], int) and ahead[2] > 0  # a UInt64 counter read as an integer
+
+
+def test_values_are_checked_against_the_fmi3_types(fmu_paths):
+    with FmuInstance(fmi3("SimplePendulum")) as instance:
+        with pytest.raises(HarnessError, match=r"solver = 1.5 is not an integer \(Enumeration\)"):
+            instance.set(solver=1.5)
+        with pytest.raises(HarnessError, match="solver = 'rk5' is not one of euler, "):
+            instance.set(solver="rk5")
+        solver = instance.variables["solver"].declaredType
+        ab6 = next(int(item.value) for item in solver.items if item.name == "ab6")
+        instance.initialize(0.0, solver="ab6", h=0.004)
+        assert instance.get("solver", "h") == [ab6, 0.004]
+        with pytest.raises(HarnessError, match="has no variable 'nope'"):
+            instance.get("nope")
+
+
+def scene_with(system: System, versions: dict[str, str]) -> System:
+    """The system with the named components' FMUs swapped for their FMI 3.0 builds."""
+    return dataclasses.replace(system, components=[
+        dataclasses.replace(c, fmu=fmi3(Path(c.fmu).stem)) if versions.get(c.name) == "3.0" else c
+        for c in system.components])
+
+
+@pytest.fixture(scope="module")
+def coupled(fmu_paths):
+    with load_system(SCENE) as system:
+        yield system
+
+
+@pytest.mark.parametrize("algorithm", ["jacobi", "gauss-seidel"])
+@pytest.mark.parametrize("native", [True, False])
+@pytest.mark.parametrize("mix", [{"left": "3.0", "right": "3.0"}, {"spring": "3.0"},
+                                 {"spring": "3.0", "left": "3.0", "right": "3.0"}])
+def test_a_mixed_system_runs_as_the_fmi2_system(coupled, algorithm, native, mix):
+    options = MasterOptions(stop=1.0, step=0.01, algorithm=algorithm, extrapolation="hold")
+    results = []
+    for system in (coupled, scene_with(coupled, mix)):
+        with Master(system, options) as master:
+            master.use_native = native
+            results.append(master.run())
+    assert results[1].columns == results[0].columns
+    assert np.array_equal(results[1].values, results[0].values)
+    assert np.array_equal(results[1].energy, results[0].energy)
+
+
+def test_rollback_through_fmi3_states_matches_fmi2(fmu_paths, coupled):
+    """Retry after a discard and step doubling save and restore every component's FMU state."""
+    spherical = System("pole", [Component("bob", fmu_paths["SphericalPendulum"], {"h": 0.001, "psi_dot": 0.0})], [])
+    cases = [(spherical, {"bob": "3.0"}, MasterOptions(stop=1.0, step=0.05, on_discard="retry", max_halvings=3)),
+             (coupled, {"spring": "3.0", "left": "3.0", "right": "3.0"},
+              MasterOptions(stop=1.0, step=0.1, extrapolation="hold", tolerance=1e-3))]
+    for system, mix, options in cases:
+        runs = []
+        for version in (system, scene_with(system, mix)):
+            with Master(version, options) as master:
+                runs.append(master.run())
+        assert runs[0].retries > 0 and runs[1].retries == runs[0].retries
+        assert runs[1].stopped_at == runs[0].stopped_at and runs[1].macro_steps == runs[0].macro_steps
+        assert np.array_equal(runs[1].values, runs[0].values)
+
+
+def test_an_fmi3_source_hands_over_its_output_derivatives(coupled):
+    """Linear extrapolation needs input derivatives at the receiver only: a pendulum that only feeds
+    the spring may be FMI 3.0 (fmi3GetOutputDerivatives gives the slopes)."""
+    one_way = dataclasses.replace(coupled, connections=[c for c in coupled.connections if c.target != "left"])
+    runs = []
+    for native in (True, False):
+        for system in (one_way, scene_with(one_way, {"left": "3.0"})):
+            with Master(system, MasterOptions(stop=1.0, step=0.01)) as master:
+                master.use_native = native
+                runs.append(master.run())
+    assert all(run.extrapolation == "linear" for run in runs)
+    for run in runs[1:]:
+        assert np.array_equal(run.values, runs[0].values)
+
+
+def test_an_fmi3_receiver_means_hold_by_default_and_refuses_linear(coupled):
+    system = scene_with(coupled, {"spring": "3.0"})
+    with Master(system, MasterOptions(stop=0.1, step=0.01)) as master:
+        assert master.run().extrapolation == "hold"
+    with pytest.raises(HarnessError, match=r"linear extrapolation sets input derivatives, which the FMI 3.0 "
+                                           r"component\(s\) 'spring' do not take"):
+        Master(system, MasterOptions(stop=0.1, step=0.01, extrapolation="linear"))
+    with pytest.raises(HarnessError, match=r"iterated macro steps .* 'spring' do not take"):
+        Master(system, MasterOptions(stop=0.1, step=0.01, iterate_tol=1e-8))
+
+
+def harness(*args: str, cwd: Path) -> subprocess.CompletedProcess:
+    return subprocess.run([sys.executable, "-m", "harness", *args], cwd=cwd, capture_output=True, text=True,
+                          timeout=300)
+
+
+def test_the_command_line_names_fmi3_builds_and_mixes_them(fmu_paths, tmp_path):
+    locate_fmu("fmi3/Spring")
+    ran = harness("simulate", "fmi3/SimplePendulum", "--stop", "1", "--out", "three.csv", cwd=tmp_path)
+    assert ran.returncode == 0, ran.stderr
+    assert harness("simulate", "SimplePendulum", "--stop", "1", "--out", "two.csv", cwd=tmp_path).returncode == 0
+    assert (tmp_path / "three.csv").read_text() == (tmp_path / "two.csv").read_text()
+    wrong = harness("simulate", "fmi3/Pendulum", cwd=tmp_path)
+    assert wrong.returncode == 2 and "unknown FMU 'fmi3/Pendulum'" in wrong.stderr and "fmi3/<name>" in wrong.stderr
+    scene = SCENE.read_text().replace('"fmu": "Spring"', '"fmu": "fmi3/Spring"')
+    (tmp_path / "mixed.json").write_text(scene)
+    ran = harness("run", "mixed.json", "--stop", "1", "--out", "mixed.csv", cwd=tmp_path)
+    assert ran.returncode == 0 and "hold extrapolation" in ran.stdout, ran.stderr
+    refused = harness("run", "mixed.json", "--stop", "1", "--extrapolation", "linear", "--out", "x.csv", cwd=tmp_path)
+    assert refused.returncode == 2 and "Traceback" not in refused.stderr
+    assert "use --extrapolation hold" in refused.stderr and not (tmp_path / "x.csv").exists()
+
+
+def test_an_fmi3_fmu_without_this_platform_names_the_fmi3_folder(tmp_path):
+    import zipfile
+    source = fmi3("SimplePendulum")
+    stripped = tmp_path / "stripped.fmu"
+    with zipfile.ZipFile(source) as full, zipfile.ZipFile(stripped, "w") as out:
+        for item in full.infolist():
+            if not item.filename.startswith("binaries/x86_64-linux/"):
+                out.writestr(item, full.read(item))
+    with pytest.raises(HarnessError, match=r"no binary for this platform \(binaries/x86_64-linux/SimplePendulum.so "
+                                           r"is missing\)"):
+        FmuInstance(stripped)
+    assert not list(Path(tmp_path).glob("fmu_*"))
+
+
+def test_other_fmi_versions_are_refused_by_name(tmp_path):
+    import zipfile
+    fake = tmp_path / "old.fmu"
+    with zipfile.ZipFile(fake, "w") as out:
+        out.writestr("modelDescription.xml", '<fmiModelDescription fmiVersion="1.0" modelName="m" guid="g"/>')
+    with pytest.raises(HarnessError, match="an FMI 1.0 FMU; this harness runs FMI 2.0 and 3.0 FMUs"):
+        FmuInstance(fake)
+
+
+@pytest.mark.parametrize("name", ["Spring", "SimplePendulum", "KapitzaPendulum"])
+def test_validate_runs_every_check_on_fmi3_as_on_fmi2(fmu_paths, name):
+    """The runtime checks, the object file's proofs and the physics checks, through FMI 3.0's calls."""
+    from harness.fmi.validation import validate
+    two, three = validate(fmu_paths[name]), validate(fmi3(name))
+    assert [c.name for c in three] == [c.name for c in two] and len(three) > 5
+    assert all(c.passed for c in three), [str(c) for c in three if not c.passed]
