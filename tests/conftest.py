@@ -6,9 +6,29 @@ import pytest
 from fmpy import extract
 
 from harness.fmi.fmu_instance import FmuInstance
-from harness.fmi.fmus import FMU_NAMES, build_dir, build_fmus
+from harness.fmi.fmus import FMU_NAMES, PROJECT_ROOT, build_dir, build_fmus
+from compatibility_record import CompatibilityPlugin, Row
 
 PENDULUMS = ("SimplePendulum", "DoublePendulum", "SpringPendulum")
+
+
+def pytest_configure(config) -> None:
+    config.addinivalue_line("markers", "compatibility(importer, version, interface, platform, criterion): the test "
+                                       "measures a row of docs/compatibility.md (tests/compatibility_record.py)")
+    config.pluginmanager.register(CompatibilityPlugin(PROJECT_ROOT / "docs" / "compatibility.md",
+                                                      build_dir() / "compatibility.md"), "compatibility-record")
+
+
+@pytest.fixture
+def compatibility(request) -> Row:
+    """The compatibility row the test's marker declares: report each FMU it agrees on."""
+    return request.node.compatibility_row
+
+
+@pytest.fixture(scope="session")
+def compatibility_record(request):
+    """The whole record, for the reference results."""
+    return request.config.pluginmanager.get_plugin("compatibility-record").record
 
 
 @pytest.fixture(scope="session")

@@ -73,9 +73,11 @@ def references(path: Path) -> dict[str, int]:
     return {v.name: v.valueReference for v in read_model_description(str(path)).modelVariables}
 
 
+@pytest.mark.compatibility(importer=f"fmpy {fmpy.__version__} validate_fmu", version="3.0", interface="CS, ME", platform="(model description)", criterion="no problem reported")
 @pytest.mark.parametrize("name", NAMES)
-def test_fmpy_validates_the_fmu(fmi3_paths, name):
+def test_fmpy_validates_the_fmu(fmi3_paths, compatibility, name):
     assert validate_fmu(str(fmi3_paths[name])) == []
+    compatibility.agrees(name)
 
 
 @pytest.mark.parametrize("name", NAMES)
@@ -325,12 +327,18 @@ def test_the_layer_compiles_against_the_standard_headers():
                     str(PROJECT_ROOT / "fmus" / "framework" / "fmi3_functions.c")], check=True)
 
 
+@pytest.mark.compatibility(importer="fmpy's source build (the macOS route)", version="3.0", interface="CS",
+                           platform="x86_64 Linux, built from sources/", criterion="the shipped binary, within 1e-12")
 @pytest.mark.parametrize("name", ["DoublePendulum", "Spring"])
-def test_fmpy_builds_the_binary_from_the_sources(fmi3_paths, fmi3_unzipped, tmp_path, name):
+def test_fmpy_builds_the_binary_from_the_sources(fmi3_paths, fmi3_unzipped, tmp_path, compatibility, name):
     """fmpy's source build reads buildDescription.xml: the binary it makes gives the same numbers."""
     copy = rebuilt_with_fmpy(fmi3_unzipped[name], tmp_path)
     assert (copy / "binaries" / "x86_64-linux" / f"{name}.so").is_file()
     rebuilt = fmpy.simulate_fmu(str(copy), stop_time=2.0, output_interval=0.1)
     original = fmpy.simulate_fmu(str(fmi3_paths[name]), stop_time=2.0, output_interval=0.1)
+    worst = 0.0
     for column in original.dtype.names:
         assert np.allclose(rebuilt[column], original[column], rtol=1e-12, atol=1e-12), column
+        worst = max(worst, float(np.max(np.abs(rebuilt[column] - original[column])
+                                        / np.maximum(1.0, np.abs(original[column])))))
+    compatibility.agrees(name, worst)

@@ -32,9 +32,11 @@ PENDULUM_OUTPUTS = {"E_kin", "E_pot", "E", "n_rhs", "n_steps", "n_rejected"}
 SOLVERS = ["euler", "midpoint", "heun", "rk3", "rk4", "rkf45", "nystrom5", "ab2", "ab3", "ab4", "ab5", "ab6"]
 
 
+@pytest.mark.compatibility(importer=f"fmpy {fmpy.__version__} validate_fmu", version="2.0", interface="CS, ME", platform="(model description)", criterion="no problem reported")
 @pytest.mark.parametrize("name", FMU_NAMES)
-def test_fmpy_validation_finds_no_problem(fmu_paths, name):
+def test_fmpy_validation_finds_no_problem(fmu_paths, compatibility, name):
     assert validate_fmu(str(fmu_paths[name])) == []
+    compatibility.agrees(name)
 
 
 @pytest.mark.parametrize("name", FMU_NAMES)
@@ -93,8 +95,10 @@ def test_binary_exports_only_fmi2_and_needs_only_libc_and_libm(fmu_paths, unzipp
     assert needed <= {"libc.so.6", "libm.so.6"}, needed
 
 
+@pytest.mark.compatibility(importer="fmpy's source build (the macOS route)", version="2.0", interface="CS",
+                           platform="x86_64 Linux, built from sources/", criterion="the shipped binary, within 1e-12")
 @pytest.mark.parametrize("name", ["SimplePendulum", "Spring"])
-def test_sources_rebuild_with_fmpy(fmu_paths, unzipped, tmp_path, name):
+def test_sources_rebuild_with_fmpy(fmu_paths, unzipped, tmp_path, compatibility, name):
     """fmpy.build.build_platform_binary compiles sources/ into a working binary with the same results."""
     copy = rebuilt_with_fmpy(unzipped[name], tmp_path)
     assert (copy / "binaries" / "linux64" / f"{name}.so").is_file()
@@ -102,6 +106,8 @@ def test_sources_rebuild_with_fmpy(fmu_paths, unzipped, tmp_path, name):
     original = simulate(fmu_paths[name], 2.0, 0.1, unzipdir=unzipped[name])
     assert rebuilt.columns == original.columns
     assert np.allclose(rebuilt.values, original.values, rtol=1e-12, atol=1e-12)
+    compatibility.agrees(name, float(np.max(np.abs(rebuilt.values - original.values)
+                                            / np.maximum(1.0, np.abs(original.values)))))
 
 
 def _plain_build(unzipped_folder: str, name: str, target: Path) -> Path:

@@ -96,9 +96,11 @@ OUTPUTS = {"SimplePendulum": ["phi", "x", "y", "E_kin"], "DoublePendulum": ["phi
 START = {"Spring": {"a_vx": 0.5, "a_vy": -0.2, "b_x": 1.2, "b_y": 0.3}}
 
 
+@pytest.mark.compatibility(importer="{peer}", version="2.0", interface="CS", platform="x86_64 Linux",
+                           criterion="the harness's simulate on 100 steps of 0.01 s, within 1e-12")
 @pytest.mark.parametrize("peer", ["libcosim", "ecos", "maestro"])
 @pytest.mark.parametrize("name", list(OUTPUTS))
-def test_each_fmu_alone_agrees_with_the_harness(request, fmu_paths, unzipped, tmp_path, peer, name):
+def test_each_fmu_alone_agrees_with_the_harness(request, fmu_paths, unzipped, tmp_path, compatibility, peer, name):
     """Each FMU with its defaults (the Spring with moving ends), 100 steps of 0.01 s: the importer's
     outputs equal the harness's."""
     start = START.get(name, {})
@@ -118,3 +120,4 @@ def test_each_fmu_alone_agrees_with_the_harness(request, fmu_paths, unzipped, tm
     assert rows.shape == expected.shape
     assert np.ptp(expected, axis=0).min() > 1e-3  # every compared output moves
     assert np.max(np.abs(rows - expected)) < 1e-12
+    compatibility.agrees(name, float(np.max(np.abs(rows - expected) / np.maximum(1.0, np.abs(expected)))))

@@ -10,6 +10,7 @@ import re
 import shutil
 import struct
 import subprocess
+import tempfile
 import zipfile
 from pathlib import Path
 
@@ -28,6 +29,20 @@ PLATFORMS = {
     "aarch64-linux": (3, "aarch64-linux-gnu-gcc", "so"),
 }
 NATIVE = {2: "linux64", 3: "x86_64-linux"}
+# 32-bit Wine lives in an i386 Debian of its own, which ./run test makes when run as root
+I386_ROOT = Path(os.environ.get("PENDULUM_I386_ROOT", "/var/cache/pendulum-fmus/i386-wine"))
+
+
+def i386_problem() -> str | None:
+    """Why the x86 Windows DLLs cannot run here, or None."""
+    if shutil.which("i686-w64-mingw32-gcc") is None:
+        return f"i686-w64-mingw32-gcc is not installed (Debian package gcc-mingw-w64-i686; {INSTALL})"
+    if not (I386_ROOT / "usr" / "bin" / "wine").is_file():
+        return (f"32-bit Wine cannot be installed beside wine64 on this Debian, and there is no i386 Debian with "
+                f"wine32 at {I386_ROOT} (./run test makes it when it runs as root)")
+    if os.geteuid() != 0 or shutil.which("unshare") is None:
+        return f"entering the i386 Debian at {I386_ROOT} (chroot, and a mount of /proc) needs root"
+    return None
 RUNTIME = {"dll": {"kernel32.dll", "msvcrt.dll"}, "so": {"libc.so.6", "libm.so.6"}}
 
 
@@ -100,6 +115,15 @@ class Importer:
             self.program = tmp_path / "driver"
             subprocess.run(["cc", "-std=c99", "-O2", "-o", str(self.program), str(DRIVER), "-ldl"], check=True)
             self.prefix = []
+        elif kind == "wine32":  # in the i386 Debian: its /proc mounted in a mount namespace of the run's own
+            self.work = Path(tempfile.mkdtemp(prefix="fmu-driver-", dir=I386_ROOT / "tmp"))
+            self.program = self.work / "driver.exe"
+            subprocess.run(["i686-w64-mingw32-gcc", "-std=c99", "-O2", "-o", str(self.program), str(DRIVER)],
+                           check=True)
+            inside = f"/tmp/{self.work.name}"
+            self.prefix = ["unshare", "--mount", "--fork", "sh", "-c",
+                           'mount -t proc proc "$0/proc" && exec chroot "$0" env "$@"', str(I386_ROOT),
+                           f"HOME={inside}", f"WINEPREFIX={inside}/wine", "WINEDEBUG=-all", "wine"]
         elif kind == "wine":
             self.program = tmp_path / "driver.exe"
             subprocess.run(["x86_64-w64-mingw32-gcc", "-std=c99", "-O2", "-o", str(self.program), str(DRIVER)],
@@ -113,8 +137,12 @@ class Importer:
             self.prefix = ["qemu-aarch64", "-L", "/usr/aarch64-linux-gnu"]
 
     def run(self, binary: Path, version: int, token: str, outputs: list[int], settings: list[str]) -> list[str]:
-        library = f"Z:{binary}".replace("/", "\\") if self.kind == "wine" else str(binary)
-        result = subprocess.run([*self.prefix, str(self.program), library, str(version), token, "10", "0.05",
+        program = str(self.program)
+        if self.kind == "wine32":  # both inside the i386 Debian, named as it sees them
+            shutil.copy(binary, self.work / binary.name)
+            binary, program = Path(f"/tmp/{self.work.name}/{binary.name}"), f"/tmp/{self.work.name}/driver.exe"
+        library = f"Z:{binary}".replace("/", "\\") if self.kind.startswith("wine") else str(binary)
+        result = subprocess.run([*self.prefix, program, library, str(version), token, "10", "0.05",
                                  ",".join(map(str, outputs)), *settings], capture_output=True, text=True,
                                 env=self.environment, timeout=600)
         assert result.returncode == 0 and result.stdout.endswith("status 0\n"), result.stderr[-2000:]
@@ -123,6 +151,9 @@ class Importer:
     def close(self) -> None:
         if self.kind == "wine":  # the Wine server outlives its programs: stop it with the prefix
             subprocess.run(["wineserver", "-k"], env=self.environment, capture_output=True)
+        if self.kind == "wine32":
+            subprocess.run([*self.prefix[:-1], "wineserver", "-k"], capture_output=True)
+            shutil.rmtree(self.work, ignore_errors=True)
 
 
 @pytest.fixture(scope="module")
@@ -134,6 +165,8 @@ def importers(fmu_paths, tmp_path_factory):
         made["wine"] = Importer(folder, "wine")
     if shutil.which("qemu-aarch64") and shutil.which("aarch64-linux-gnu-gcc"):
         made["qemu"] = Importer(folder, "qemu")
+    if i386_problem() is None:
+        made["wine32"] = Importer(folder, "wine32")
     yield made
     for importer in made.values():
         importer.close()
@@ -141,6 +174,8 @@ def importers(fmu_paths, tmp_path_factory):
 
 def run_everywhere(importers, tmp_path, name: str, version: int, platform: str, kind: str,
                    settings: list[str]) -> tuple[list[str], list[str]]:
+    if kind == "wine32" and i386_problem():
+        pytest.skip(i386_problem())
     if kind not in importers:
         needs({"wine": "wine", "qemu": "qemu-aarch64"}[kind], {"wine": "wine64", "qemu": "qemu-user"}[kind])
     md = read_model_description(str(fmu_path(name, version)))
@@ -164,9 +199,15 @@ def largest_deviation(native: list[str], other: list[str]) -> float:
     return worst
 
 
-@pytest.mark.parametrize("platform, kind", [("win64", "wine"), ("x86_64-windows", "wine"),
-                                            ("aarch64-linux", "qemu")])
-def test_each_binary_gives_the_x86_64_linux_numbers(importers, tmp_path, platform, kind):
+@pytest.mark.compatibility(importer="tools/fmu_driver.c under {kind}", version="{version}", interface="CS",
+                           platform="{platform}", criterion="the x86_64 Linux binary under the same driver: "
+                                                            "{criterion}")
+@pytest.mark.parametrize("platform, kind, version, criterion", [
+    ("win64", "wine", "2.0", "within 1e-11"), ("x86_64-windows", "wine", "3.0", "within 1e-11"),
+    ("win32", "wine32", "2.0", "within 1e-11"), ("x86-windows", "wine32", "3.0", "within 1e-11"),
+    ("aarch64-linux", "qemu", "3.0", "bit for bit")])
+def test_each_binary_gives_the_x86_64_linux_numbers(importers, tmp_path, compatibility, platform, kind, version,
+                                                    criterion):
     """10 s of every model at its defaults (201 communication points, every Real output). The aarch64
     binary runs the same arithmetic with the same C library (glibc's libm) and agrees bit for bit.
     Under Wine, sin and cos come from Wine's C runtime, which differs from glibc's by an ulp at some
@@ -174,7 +215,7 @@ def test_each_binary_gives_the_x86_64_linux_numbers(importers, tmp_path, platfor
     pendulum's fast drive, cos(Omega t) at large arguments)."""
     version = PLATFORMS[platform][0]
     # FMI 3.0 under Wine: the DLLs differ from FMI 2.0's in the API layer only, which three models cover
-    names = ("SimplePendulum", "Chain5", "Spring") if platform == "x86_64-windows" else FMU_NAMES
+    names = ("SimplePendulum", "Chain5", "Spring") if platform in ("x86_64-windows", "x86-windows") else FMU_NAMES
     for name in names:
         native, other = run_everywhere(importers, tmp_path, name, version, platform, kind, [])
         assert len(native) == 202 and len(other) == 202
@@ -183,6 +224,7 @@ def test_each_binary_gives_the_x86_64_linux_numbers(importers, tmp_path, platfor
             assert not differing, f"{name}: first difference at line {native.index(differing[0])}"
         else:
             assert largest_deviation(native, other) < 1e-11, name
+        compatibility.agrees(name, largest_deviation(native, other))
 
 
 @pytest.mark.parametrize("platform, kind", [("win64", "wine"), ("aarch64-linux", "qemu")])
