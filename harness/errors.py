@@ -26,3 +26,17 @@ def where(place: str, unpacked: str | Path | None = None) -> Iterator[None]:
         if text == str(error):
             raise
         raise HarnessError(text) from None
+
+
+def first_problem(error: BaseException) -> str:
+    """A library's exception in one line: its first line, and where that only announces a list
+    ("Failed to validate modelDescription.xml:" followed by "- ERROR (line 5, ...): ..." lines, as
+    fmpy's schema validations word it), the first item of the list and how many more follow."""
+    lines = [line.strip() for line in str(error).strip().splitlines() if line.strip()]
+    if not lines:
+        return type(error).__name__
+    items = [line.removeprefix("- ").removeprefix("ERROR ") for line in lines[1:]]
+    if not lines[0].endswith(":") or not items:
+        return lines[0]
+    more = f"; and {len(items) - 1} more" if len(items) > 1 else ""
+    return f"{lines[0]} {items[0].rstrip('.')}{more}"

@@ -54,7 +54,9 @@ def broken(fmu_paths, tmp_path) -> dict[str, Path]:
 
 @pytest.mark.parametrize("case,words", [("corrupt", "not a zip archive"),
                                         ("no binary", "no binary for this platform"),
-                                        ("FMI 3.0", "an FMI 3.0 FMU; this harness runs FMI 2.0"),
+                                        ("FMI 3.0", "Failed to validate modelDescription.xml: (line 5, column 0): Element "
+                                                    "'fmiModelDescription', attribute 'guid': The attribute 'guid' "
+                                                    "is not allowed; and "),
                                         ("missing", "no such FMU file")])
 def test_broken_fmus(broken, tmp_path, case, words):
     one_line_error(harness("simulate", str(broken[case]), "--out", str(tmp_path / "x.csv")), words)
@@ -74,6 +76,16 @@ def test_malformed_ssd(fmu_paths, tmp_path):
     (folder / "SystemStructure.ssd").write_text("<ssd:SystemStructureDescription xmlns:ssd='x'><unclosed")
     one_line_error(harness("run", str(folder), "--stop", "1", "--step", "0.1", "--out", str(tmp_path / "x.csv")),
                    "malformed SSD")
+
+
+def test_an_ssd_against_its_schema_names_the_first_problem(fmu_paths, tmp_path):
+    folder = ssp_copy(tmp_path)
+    ssd = folder / "SystemStructure.ssd"
+    ssd.write_text(ssd.read_text().replace("<ssd:System ", '<ssd:System bogus="1" ', 1))
+    one_line_error(harness("run", str(folder), "--stop", "1", "--step", "0.1", "--out", str(tmp_path / "x.csv")),
+                   "Failed to validate SystemStructure.ssd: (line 6, column 0): Element "
+                   "'{http://ssp-standard.org/SSP1/SystemStructureDescription}System', attribute 'bogus': "
+                   "The attribute 'bogus' is not allowed)")
 
 
 def test_ssd_connection_to_a_missing_variable(fmu_paths, tmp_path):

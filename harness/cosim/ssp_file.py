@@ -18,15 +18,10 @@ from pathlib import Path, PurePosixPath
 
 from harness.archives import MAX_BYTES, MAX_READ, extract_members, name_problem, open_archive, read_member
 from harness.cosim.structure import Component, Connection, System
-from harness.errors import HarnessError
+from harness.errors import HarnessError, first_problem
 from harness.fmi.fmu_instance import read_description
 
 SSD = "SystemStructure.ssd"
-
-
-def _first_line(error: BaseException) -> str:
-    lines = str(error).strip().splitlines()
-    return lines[0] if lines else type(error).__name__
 
 
 def _in_memory_ssd(files: dict[str, bytes]) -> io.BytesIO:
@@ -235,7 +230,7 @@ def load_ssp(path: Path) -> System:
     except HarnessError:
         raise
     except Exception as error:  # lxml, schema and reader errors come as several types
-        raise HarnessError(f"{path}: malformed SSD ({_first_line(error)})") from None
+        raise HarnessError(f"{path}: malformed SSD ({first_problem(error)})") from None
     system = ssd.system
     _refuse_unsupported(system, what)
     system_units: dict[str, str] = {}

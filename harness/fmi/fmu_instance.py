@@ -22,7 +22,7 @@ from fmpy.fmi3 import FMU3Model, FMU3Slave
 from fmpy.fmi1 import calloc, free
 
 from harness.archives import extract_fmu
-from harness.errors import HarnessError
+from harness.errors import HarnessError, first_problem
 from harness.fmi.binaries import checked_identifier, elf_problem
 from harness.fmi.calls import FUNCTIONS, Calls, scalar_type
 
@@ -79,11 +79,6 @@ class LogCollector:
         self.messages.append(LogMessage(status, (category or b"").decode(), (message or b"").decode()))
 
 
-def _first_line(error: Exception) -> str:
-    lines = str(error).strip().splitlines()
-    return lines[0] if lines else type(error).__name__
-
-
 def fmi_version(path: Path) -> str:
     """The fmiVersion of an FMU file ("2.0" or "3.0"); a one-line HarnessError for anything else."""
     import xml.etree.ElementTree as ET
@@ -109,7 +104,7 @@ def read_description(path: Path):
     try:
         return read_model_description(str(path))
     except Exception as error:  # fmpy raises plain exceptions for invalid files
-        raise HarnessError(f"{path}: invalid modelDescription.xml ({_first_line(error)})") from None
+        raise HarnessError(f"{path}: invalid modelDescription.xml ({first_problem(error)})") from None
 
 
 # A decimal number as C and JSON write it, in ASCII (Python's float() also takes "1_000" and other
@@ -175,7 +170,7 @@ class FmuInstance:
             fmu = cls[fmi3, kind](guid=self.model_description.guid, unzipDirectory=self.unzipdir,
                                   modelIdentifier=interface.modelIdentifier, instanceName=name)
         except Exception as error:  # fmpy raises plain exceptions when the binary cannot be loaded
-            raise HarnessError(f"{self.path}: cannot load {library.name} ({_first_line(error)})") from None
+            raise HarnessError(f"{self.path}: cannot load {library.name} ({first_problem(error)})") from None
         try:
             if fmi3:
                 fmu.instantiate(loggingOn=logging_on, logMessage=self.log.fmi3_log_message)
