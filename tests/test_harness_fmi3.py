@@ -5,6 +5,7 @@ difference is the harness calling one version differently from the other."""
 from __future__ import annotations
 
 import dataclasses
+import json
 import subprocess
 import sys
 from pathlib import Path
@@ -220,3 +221,108 @@ def test_an_ssp_may_carry_fmi3_fmus(fmu_paths, tmp_path):
                 {"spring": "2.0", "left": "3.0", "right": "3.0"}
             three = master.run()
     assert np.array_equal(three.values, two.values) and np.ptp(two["left.x"]) > 0.1
+
+
+def edited(tmp_path: Path, name: str, *replacements: tuple[str, str], source: Path | None = None) -> Path:
+    """A copy of the FMI 3.0 FMU `name` with its model description edited."""
+    import zipfile
+    target = tmp_path / f"{name}-{len(list(tmp_path.glob('*.fmu')))}.fmu"
+    with zipfile.ZipFile(source or fmi3(name)) as original, zipfile.ZipFile(target, "w") as copy:
+        for item in original.infolist():
+            data = original.read(item)
+            if item.filename == "modelDescription.xml":
+                text = data.decode()
+                for old, new in replacements:
+                    assert old in text, old
+                    text = text.replace(old, new)
+                data = text.encode()
+            copy.writestr(item, data)
+    return target
+
+
+def one_line(ran: subprocess.CompletedProcess, *words: str) -> None:
+    assert ran.returncode == 2, (ran.returncode, ran.stderr)
+    assert ran.stderr.count("\n") == 1 and ran.stderr.startswith("harness: error: "), ran.stderr
+    for word in words:
+        assert word in ran.stderr, (word, ran.stderr)
+
+
+def mixed_scene(tmp_path: Path, left: Path) -> Path:
+    scene = json.loads(SCENE.read_text())
+    scene["components"]["left"]["fmu"] = str(left)
+    path = tmp_path / "scene.json"
+    path.write_text(json.dumps(scene))
+    return path
+
+
+def test_outputs_of_types_the_harness_does_not_record_are_refused_by_name(fmu_paths, tmp_path):
+    single = edited(tmp_path, "SimplePendulum", ('<Float64 name="E" ', '<Float32 name="E" '))
+    one_line(harness("simulate", str(single), "--out", "x.csv", cwd=tmp_path),
+             "output 'E' is a Float32; the harness records Float64 and integer outputs")
+    flags = edited(tmp_path, "SimplePendulum", *[(f'<UInt64 name="{n}" ', f'<Boolean name="{n}" ')
+                                                 for n in ("n_rhs", "n_steps", "n_rejected")])
+    for extra in ([], ["--on-discard", "retry"]):  # the C loop and the Python loop
+        one_line(harness("run", str(mixed_scene(tmp_path, flags)), "--stop", "0.1", "--out", "y.csv", *extra,
+                         cwd=tmp_path), "output 'n_rhs' is a Boolean")
+    assert not (tmp_path / "x.csv").exists() and not (tmp_path / "y.csv").exists()
+
+
+def test_each_value_goes_through_the_function_of_its_declared_type(fmu_paths, tmp_path):
+    """A parameter declared Float32 is set with fmi3SetFloat32 (which this FMU, whose L is a Float64,
+    refuses by name), never as 4 bytes handed to fmi3SetFloat64."""
+    single = edited(tmp_path, "SimplePendulum", ('<Float64 name="L" ', '<Float32 name="L" '))
+    one_line(harness("simulate", str(single), "--set", "L=2", "--out", "x.csv", cwd=tmp_path), "fmi3SetFloat32")
+
+
+def test_integers_are_read_exactly_and_checked_against_their_type(fmu_paths):
+    with FmuInstance(fmi3("SimplePendulum")) as instance:
+        with pytest.raises(HarnessError, match=r"solver = '5.0000000000000001' is not an integer \(Enumeration\)"):
+            instance.set(solver="5.0000000000000001")
+        with pytest.raises(HarnessError, match=r"solver = '9223372036854775808' is outside the range of an FMI 3.0 "
+                                               r"Enumeration \[-9223372036854775808, 9223372036854775807\]"):
+            instance.set(solver="9223372036854775808")
+        assert instance.set(solver="9223372036854775807") == 3  # in Int64's range: the FMU's own check refuses it
+        assert instance.last_message().startswith("fmi3SetInt64: variable solver")
+        assert "out of its allowed range [1, 12]" in instance.last_message()
+        assert instance.set(solver="4e0") == 0
+    with FmuInstance(fmu_paths["SimplePendulum"]) as instance:
+        with pytest.raises(HarnessError, match=r"solver = 2147483648 is outside the range of an FMI 2.0 Enumeration"):
+            instance.set(solver=2**31)
+        # Integer and Enumeration travel through fmi2GetInteger alike: one reader for both
+        instance.initialize(0.0, solver="ab4")
+        reader = instance.integer_reader(["solver", "n_rhs"])
+        values = np.zeros(2, dtype=reader.dtype)
+        assert reader.read(values.ctypes.data) == 0 and reader.dtype == np.intc
+        assert values[0] == instance.get("solver")[0] and values[1] == instance.get("n_rhs")[0]
+
+
+def test_a_failed_integer_read_names_its_component_in_both_loops(fmu_paths, tmp_path):
+    """The counters declared Int32 (they are UInt64 in the binary): the FMU refuses fmi3GetInt32 at the
+    first row, and the C loop blames that component as the Python loop does."""
+    wrong = edited(tmp_path, "SimplePendulum", *[(f'<UInt64 name="{n}" ', f'<Int32 name="{n}" ')
+                                                 for n in ("n_rhs", "n_steps", "n_rejected")])
+    for extra in ([], ["--on-discard", "retry"]):
+        one_line(harness("run", str(mixed_scene(tmp_path, wrong)), "--stop", "0.1", "--out", "y.csv", *extra,
+                         cwd=tmp_path), "left: ", "fmi3GetInt32")
+
+
+def test_rollback_needs_components_that_save_their_state(fmu_paths, tmp_path):
+    stateless = edited(tmp_path, "SimplePendulum", ('canGetAndSetFMUState="true" canSerializeFMUState="true"\n',
+                                                    'canGetAndSetFMUState="false" canSerializeFMUState="false"\n'))
+    scene = mixed_scene(tmp_path, stateless)
+    one_line(harness("run", str(scene), "--stop", "0.1", "--on-discard", "retry", "--out", "y.csv", cwd=tmp_path),
+             "--on-discard retry roll back through FMU states, which left cannot save")
+    assert harness("run", str(scene), "--stop", "0.1", "--out", "y.csv", cwd=tmp_path).returncode == 0
+
+
+def test_names_that_only_look_like_project_fmus_are_refused(fmu_paths, tmp_path):
+    for name in ("/SimplePendulum", "fmi3//SimplePendulum", "FMI3/SimplePendulum", "fmi3/"):
+        one_line(harness("simulate", name, "--out", "x.csv", cwd=tmp_path), f"unknown FMU {name!r}")
+
+
+def test_the_coupling_studies_refuse_fmi3_receivers_in_their_own_terms(fmu_paths, tmp_path):
+    scene = SCENE.read_text().replace('"fmu": "Spring"', '"fmu": "fmi3/Spring"')
+    (tmp_path / "mixed.json").write_text(scene)
+    words = ("compare linear extrapolation and iterated steps", "spring is an FMI 3.0 FMU", "use the FMI 2.0 FMUs")
+    one_line(harness("plan", "mixed.json", "--tolerance", "1e-3", cwd=tmp_path), *words)
+    one_line(harness("chart", "coupling", "--system", "mixed.json", "--out", "charts", cwd=tmp_path), *words)

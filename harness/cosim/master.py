@@ -29,7 +29,6 @@ import numpy as np
 
 from harness.cosim.structure import System
 from harness.errors import HarnessError, where
-from harness.fmi.calls import is_float
 from harness.fmi.fmu_instance import DISCARD, ERROR, OK, STATUS_NAMES, FmuInstance
 from harness.fmi.results import TimeTable
 from harness.fmi.simulation import Progress, check_table_size, communication_grid
@@ -103,8 +102,8 @@ class _Unit:
     def _prepare(self, component, system: System) -> None:
         self.start = component.start
         variables = self.instance.model_description.modelVariables
-        self.real_outputs = [v.name for v in variables if v.causality == "output" and is_float(v)]
-        self.integer_outputs = [v.name for v in variables if v.causality == "output" and not is_float(v)]
+        self.real_outputs, self.integer_outputs = self.instance.recorded_outputs(
+            [v.name for v in variables if v.causality == "output"])
         self.inputs = [c for c in system.connections if c.target == self.name]
         for c in self.inputs:
             variable = self.instance.variables.get(c.input)
@@ -187,6 +186,7 @@ class Master:
                     self.units.append(_Unit(component, system))
                 self._route()
                 self.options = dataclasses.replace(options, extrapolation=self._extrapolation(options))
+                self._check_states(options)
         except BaseException:
             self.free()
             raise
@@ -226,6 +226,15 @@ class Master:
             raise HarnessError(f"iterated macro steps interpolate the inputs through input derivatives, which the "
                                f"FMI 3.0 component(s) {names} do not take: leave out --iterate, or use their FMI 2.0 FMUs")
         return "hold"
+
+    def _check_states(self, options: MasterOptions) -> None:
+        """Rollback (retry after a discard, iteration, step doubling) needs every component's FMU state."""
+        uses = [what for what, used in (("--on-discard retry", options.on_discard == "retry"),
+                                        ("--iterate", options.iterate_tol), ("--tolerance", options.tolerance)) if used]
+        lacking = [u.name for u in self.units if not u.instance.model_description.coSimulation.canGetAndSetFMUstate]
+        if uses and lacking:
+            raise HarnessError(f"{' and '.join(uses)} roll back through FMU states, which {', '.join(lacking)} "
+                               f"cannot save (canGetAndSetFMUstate is not true)")
 
     @staticmethod
     def _check_units(source: _Unit, output: str, target: _Unit, input_: str, connection) -> None:

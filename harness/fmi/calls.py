@@ -115,7 +115,8 @@ class Calls:
         self.dll = dll
         self.component = ctypes.c_void_p(component)
         self.names = FUNCTIONS[version]
-        self.float_type = TYPES[version]["Real" if version == "2.0" else "Float64"]
+        self.float_type_name = "Real" if version == "2.0" else "Float64"
+        self.float_type = TYPES[version][self.float_type_name]
         self.last_time = ctypes.c_double(0.0)  # fmi3DoStep's lastSuccessfulTime
         self._roles: dict[str, object] = {}
         if version == "2.0":

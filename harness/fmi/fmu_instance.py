@@ -24,7 +24,7 @@ from fmpy.fmi1 import calloc, free
 from harness.archives import extract_fmu
 from harness.errors import HarnessError, first_problem
 from harness.fmi.binaries import checked_identifier, elf_problem
-from harness.fmi.calls import FUNCTIONS, Calls, scalar_type
+from harness.fmi.calls import FUNCTIONS, TYPES, Calls, scalar_type
 
 # The x86_64 Linux binary's folder, per FMI version.
 PLATFORM_FOLDERS = {"2.0": "linux64", "3.0": "x86_64-linux"}
@@ -93,6 +93,8 @@ def fmi_version(path: Path) -> str:
         version = ET.fromstring(text).get("fmiVersion")
     except ET.ParseError as error:
         raise HarnessError(f"{path}: modelDescription.xml is not well-formed XML ({error})") from None
+    if version is None:
+        raise HarnessError(f"{path}: modelDescription.xml has no fmiVersion attribute")
     if version not in PLATFORM_FOLDERS:
         raise HarnessError(f"{path}: an FMI {version} FMU; this harness runs FMI 2.0 and 3.0 FMUs")
     return version
@@ -124,6 +126,26 @@ def _number(name: str, value) -> float:
     if isinstance(value, str) and is_number_text(value):
         return float(value)
     raise HarnessError(f"{name} = {value!r} is not a number")
+
+
+def exact_integer(name: str, value) -> int:
+    """An integer start value exactly as written (a numeric string is read as a decimal, not through
+    a double, so 9007199254740993 stays itself and 5.0000000000000001 is not 5); a HarnessError for
+    anything that is not a whole number."""
+    from decimal import Decimal, InvalidOperation
+    if isinstance(value, int) and not isinstance(value, bool):
+        return value
+    if isinstance(value, float) and math.isfinite(value) and value == int(value):
+        return int(value)
+    if isinstance(value, str) and is_number_text(value):
+        try:
+            number = Decimal(value.strip())
+        except InvalidOperation:
+            number = None
+        if number is not None and number.is_finite() and abs(number.adjusted()) < 400 \
+                and number == number.to_integral_value():
+            return int(number)
+    raise HarnessError(f"{name} = {value!r} is not an integer")
 
 
 class FmuInstance:
@@ -206,7 +228,8 @@ class FmuInstance:
     def _encode(self, name: str, value) -> int | float:
         """The value as the FMI type of the variable: a number for a float (a numeric string is read),
         an integer in the type's range for an integer or enumeration (an enumeration also by item
-        name). Anything else is a HarnessError naming the variable, never a silent conversion."""
+        name, a Boolean also as true or false), read exactly. Anything else is a HarnessError naming
+        the variable, never a silent conversion."""
         variable = self._variable(name)
         if variable.type == "Enumeration" and isinstance(value, str):
             items = self._enumeration_items(variable)
@@ -214,12 +237,17 @@ class FmuInstance:
                 return items[value]
             if not is_number_text(value):
                 raise HarnessError(f"{name} = {value!r} is not one of {', '.join(items)}")
-        number = _number(name, value)
+        if variable.type == "Boolean" and isinstance(value, (str, bool)):
+            words = {"true": 1, "false": 0}
+            if isinstance(value, bool) or value.strip().lower() in words:
+                return int(value) if isinstance(value, bool) else words[value.strip().lower()]
         scalar = scalar_type(self.version, variable)
         if scalar.is_float:
-            return number
-        if not math.isfinite(number) or number != int(number):
-            raise HarnessError(f"{name} = {value!r} is not an integer ({variable.type})")
+            return _number(name, value)
+        try:
+            number = exact_integer(name, value)
+        except HarnessError:
+            raise HarnessError(f"{name} = {value!r} is not an integer ({variable.type})") from None
         if not scalar.smallest <= number <= scalar.largest:
             raise HarnessError(f"{name} = {value!r} is outside the range of an FMI {self.version} {variable.type} "
                                f"[{scalar.smallest}, {scalar.largest}]")
@@ -233,7 +261,7 @@ class FmuInstance:
             encoded = self._encode(name, value)
             scalar = scalar_type(self.version, self.variables[name])
             vr = ctypes.c_uint(self.reference(name))
-            setter = raw.set_real if scalar.is_float else raw.values(scalar, True)
+            setter = raw.set_real if scalar is raw.float_type else raw.values(scalar, True)
             status = setter(raw.component, ctypes.byref(vr), 1, ctypes.byref(scalar.c_type(encoded)))
             worst = max(worst, status)
         return worst
@@ -251,15 +279,33 @@ class FmuInstance:
             values.append(out[0] if scalar.is_float else int(out[0]))
         return values
 
+    def recorded_outputs(self, names: list[str]) -> tuple[list[str], list[str]]:
+        """The outputs `names` split into the float ones (Real, Float64) and the integer ones, which
+        the harness records; any other type (Float32, Boolean, String, ...) is refused by name."""
+        floats, integers = [], []
+        for name in names:
+            variable = self._variable(name)
+            scalar = TYPES[self.version].get(variable.type)
+            if scalar is self.raw.float_type:
+                floats.append(name)
+            elif scalar is not None and not scalar.is_float and variable.type != "Boolean":
+                integers.append(name)
+            else:
+                raise HarnessError(f"{self.path.name}: output {name!r} is a {variable.type}; the harness records "
+                                   f"{self.raw.float_type_name} and integer outputs")
+        return floats, integers
+
     def integer_reader(self, names: list[str]) -> "IntegerReader":
         """One call reading the integer variables `names` (all of one type: FMI 3.0's counters are
         UInt64, FMI 2.0's Integer) into an array at an address."""
-        scalars = {self.variables[n].type: scalar_type(self.version, self.variables[n]) for n in names}
+        # Integer and Enumeration (and FMI 3.0's Int64 and Enumeration) share their C type and function
+        scalars = {scalar_type(self.version, self.variables[n]) for n in names}
         if len(scalars) > 1:
-            raise HarnessError(f"{self.path.name}: the integer outputs {', '.join(names)} are of several types "
-                               f"({', '.join(scalars)})")
-        type_name = next(iter(scalars), "Integer" if self.version == "2.0" else "UInt64")
-        scalar = scalar_type(self.version, _Typed(type_name))
+            types = sorted({self.variables[n].type for n in names})
+            raise HarnessError(f"{self.path.name}: the integer outputs {', '.join(names)} are of several C types "
+                               f"({', '.join(types)}); the harness records integers of one type")
+        scalar = scalars.pop() if scalars else \
+            scalar_type(self.version, _Typed("Integer" if self.version == "2.0" else "UInt64"))
         vrs = (ctypes.c_uint * max(len(names), 1))(*[self.reference(n) for n in names])
         return IntegerReader(np.dtype(scalar.c_type), self.raw.reader(scalar, vrs, len(names)), scalar.getter,
                              vrs, self.raw.function(scalar.getter))

@@ -19,8 +19,7 @@ FMI3_FOLDER = "fmi3"
 
 def project_fmu_name(name: str) -> bool:
     """One of the project's FMUs: <name> (FMI 2.0) or fmi3/<name> (FMI 3.0)."""
-    folder, _, model = name.rpartition("/")
-    return model in FMU_NAMES and folder in ("", FMI3_FOLDER)
+    return name in FMU_NAMES or (name.startswith(f"{FMI3_FOLDER}/") and name[len(FMI3_FOLDER) + 1:] in FMU_NAMES)
 
 
 def build_dir() -> Path:

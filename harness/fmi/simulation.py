@@ -15,7 +15,6 @@ from pathlib import Path
 import numpy as np
 
 from harness.errors import HarnessError
-from harness.fmi.calls import is_float
 from harness.fmi.fmu_instance import DISCARD, ERROR, STATUS_NAMES, FmuInstance
 from harness.fmi.results import TimeTable
 
@@ -113,8 +112,7 @@ class Recorder:
 
     def __init__(self, instance: FmuInstance, grid: np.ndarray, outputs: list[str]):
         self.instance = instance
-        real_names = [n for n in outputs if is_float(instance.variables[n])]
-        integer_names = [n for n in outputs if n not in real_names]
+        real_names, integer_names = instance.recorded_outputs(outputs)
         self.columns = ["time"] + real_names + integer_names
         check_table_size(len(grid), len(self.columns))
         self.n_real, self.n_int = len(real_names), len(integer_names)

@@ -96,6 +96,12 @@ class CoupledPendulums:
             wrong = sorted(" -> ".join((f"{a}.{b}", f"{c}.{d}")) for a, b, c, d in actual ^ expected)
             raise HarnessError(f"{needs}; missing or extra: {', '.join(wrong[:4])}")
         _check_project_pendulums(system, pendulums, needs)
+        newer = [c.name for c in system.components if read_description(c.fmu).fmiVersion != "2.0"]
+        if newer:
+            raise HarnessError(f"{system.name}: the coupling studies compare linear extrapolation and iterated steps, "
+                               f"which hand inputs over with their derivatives; {', '.join(newer)} "
+                               f"{'is an FMI 3.0 FMU' if len(newer) == 1 else 'are FMI 3.0 FMUs'}, which take none: "
+                               "use the FMI 2.0 FMUs")
         p = {name: kinds[name][1] for name in pendulums}
         return cls(p[ends["a"]], p[ends["b"]], kinds[spring][1], (ends["a"], ends["b"]))
 

@@ -122,7 +122,7 @@ static int step_and_read(CoreUnit *unit, double t, double H, int linear)
     return get_output_derivatives(unit);
 }
 
-static int record(CoreUnit *units, int n_units, double t, double *row, double *energy)
+static int record(CoreUnit *units, int n_units, double t, double *row, double *energy, int *culprit)
 {
     int k, i, column = 1;
     double total = 0.0;
@@ -133,7 +133,10 @@ static int record(CoreUnit *units, int n_units, double t, double *row, double *e
     }
     for (k = 0; k < n_units; k++) {
         if (!units[k].n_int) continue;
-        if (get_integers(&units[k]) >= CORE_ERROR) return CORE_ERROR;
+        if (get_integers(&units[k]) >= CORE_ERROR) {
+            *culprit = k;
+            return CORE_ERROR;
+        }
         for (i = 0; i < units[k].n_int; i++) row[column++] = integer_value(&units[k], i);
     }
     *energy = total;
@@ -152,7 +155,7 @@ int cosim_run(CoreUnit *units, int n_units, const double *grid, long n_points, i
     *culprit = -1;
     for (p = 0; p < n_points; p++) {
         const double t = grid[p];
-        if (record(units, n_units, t, table + p * row_length, energy + p) != CORE_OK) return CORE_ERROR;
+        if (record(units, n_units, t, table + p * row_length, energy + p, culprit) != CORE_OK) return CORE_ERROR;
         *rows = p + 1;
         if (p + 1 == n_points) break;
         {
