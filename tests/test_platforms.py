@@ -136,17 +136,30 @@ class Importer:
                            check=True)
             self.prefix = ["qemu-aarch64", "-L", "/usr/aarch64-linux-gnu"]
 
-    def run(self, binary: Path, version: int, token: str, outputs: list[int], settings: list[str]) -> list[str]:
-        program = str(self.program)
-        if self.kind == "wine32":  # both inside the i386 Debian, named as it sees them
-            shutil.copy(binary, self.work / binary.name)
-            binary, program = Path(f"/tmp/{self.work.name}/{binary.name}"), f"/tmp/{self.work.name}/driver.exe"
-        library = f"Z:{binary}".replace("/", "\\") if self.kind.startswith("wine") else str(binary)
-        result = subprocess.run([*self.prefix, program, library, str(version), token, "10", "0.05",
-                                 ",".join(map(str, outputs)), *settings], capture_output=True, text=True,
-                                env=self.environment, timeout=600)
-        assert result.returncode == 0 and result.stdout.endswith("status 0\n"), result.stderr[-2000:]
-        return result.stdout.splitlines()
+    def run(self, jobs: list[tuple[Path, int, str, list[int], list[str]]]) -> list[list[str]]:
+        """Each job (binary, version, token, outputs, settings) over 10 s at 0.05 s, all in one process
+        of the driver (under Wine or qemu the process start costs more than a run): per job its lines."""
+        lines = []
+        for binary, version, token, outputs, settings in jobs:
+            if self.kind == "wine32":  # inside the i386 Debian, named as it sees it
+                shutil.copy(binary, self.work / binary.name)
+                binary = Path(f"/tmp/{self.work.name}/{binary.name}")
+            library = f"Z:{binary}".replace("/", "\\") if self.kind.startswith("wine") else str(binary)
+            lines.append(" ".join([library, str(version), token, "10", "0.05", ",".join(map(str, outputs)),
+                                   *settings]))
+        program = f"/tmp/{self.work.name}/driver.exe" if self.kind == "wine32" else str(self.program)
+        result = subprocess.run([*self.prefix, program, "--jobs"], input="\n".join(lines) + "\n",
+                                capture_output=True, text=True, env=self.environment, timeout=900)
+        assert result.returncode == 0, result.stderr[-2000:]
+        runs, current = [], []
+        for line in result.stdout.splitlines():
+            current.append(line)
+            if line.startswith("status "):
+                assert line == "status 0", result.stderr[-2000:]
+                runs.append(current)
+                current = []
+        assert len(runs) == len(jobs), result.stdout[-2000:]
+        return runs
 
     def close(self) -> None:
         if self.kind == "wine":  # the Wine server outlives its programs: stop it with the prefix
@@ -172,21 +185,23 @@ def importers(fmu_paths, tmp_path_factory):
         importer.close()
 
 
-def run_everywhere(importers, tmp_path, name: str, version: int, platform: str, kind: str,
-                   settings: list[str]) -> tuple[list[str], list[str]]:
+def run_everywhere(importers, tmp_path, names: list[str], version: int, platform: str, kind: str,
+                   settings: list[list[str]]) -> list[tuple[list[str], list[str]]]:
+    """Each (FMU, settings) pair on the x86_64 Linux binary and on the platform's: their lines."""
     if kind == "wine32" and i386_problem():
         pytest.skip(i386_problem())
     if kind not in importers:
         needs({"wine": "wine", "qemu": "qemu-aarch64"}[kind], {"wine": "wine64", "qemu": "qemu-user"}[kind])
-    md = read_model_description(str(fmu_path(name, version)))
-    token = md.guid if version == 2 else md.instantiationToken
-    outputs = [v.valueReference for v in md.modelVariables if v.causality == "output"
-               and v.type in ("Real", "Float64")]
-    native = importers["native"].run(extracted_binary(tmp_path, name, version, NATIVE[version]), version, token,
-                                     outputs, settings)
-    other = importers[kind].run(extracted_binary(tmp_path, name, version, platform), version, token, outputs,
-                                settings)
-    return native, other
+    native_jobs, other_jobs = [], []
+    for name, setting in zip(names, settings):
+        md = read_model_description(str(fmu_path(name, version)))
+        token = md.guid if version == 2 else md.instantiationToken
+        outputs = [v.valueReference for v in md.modelVariables if v.causality == "output"
+                   and v.type in ("Real", "Float64")]
+        native_jobs.append((extracted_binary(tmp_path, name, version, NATIVE[version]), version, token, outputs,
+                            setting))
+        other_jobs.append((extracted_binary(tmp_path, name, version, platform), version, token, outputs, setting))
+    return list(zip(importers["native"].run(native_jobs), importers[kind].run(other_jobs)))
 
 
 def largest_deviation(native: list[str], other: list[str]) -> float:
@@ -214,10 +229,8 @@ def test_each_binary_gives_the_x86_64_linux_numbers(importers, tmp_path, compati
     arguments: the first such ulp grows with the motion, to 1e-12 at most over 10 s (the Kapitza
     pendulum's fast drive, cos(Omega t) at large arguments)."""
     version = PLATFORMS[platform][0]
-    # FMI 3.0 under Wine: the DLLs differ from FMI 2.0's in the API layer only, which three models cover
-    names = ("SimplePendulum", "Chain5", "Spring") if platform in ("x86_64-windows", "x86-windows") else FMU_NAMES
-    for name in names:
-        native, other = run_everywhere(importers, tmp_path, name, version, platform, kind, [])
+    runs = run_everywhere(importers, tmp_path, FMU_NAMES, version, platform, kind, [[] for _ in FMU_NAMES])
+    for name, (native, other) in zip(FMU_NAMES, runs):
         assert len(native) == 202 and len(other) == 202
         if kind == "qemu":
             differing = [a for a, b in zip(native, other) if a != b]
@@ -236,7 +249,8 @@ def test_every_method_agrees_across_platforms(importers, tmp_path, platform, kin
     name = "DoublePendulum" if kind == "qemu" else "SimplePendulum"
     md = read_model_description(str(fmu_path(name, version)))
     refs = {v.name: v.valueReference for v in md.modelVariables}
-    for solver, method in enumerate(SOLVERS, start=1):
-        settings = [f"int:{refs['solver']}={solver}", f"real:{refs['h']}=0.01", f"real:{refs['tol']}=1e-8"]
-        native, other = run_everywhere(importers, tmp_path, name, version, platform, kind, settings)
+    settings = [[f"int:{refs['solver']}={solver}", f"real:{refs['h']}=0.01", f"real:{refs['tol']}=1e-8"]
+                for solver in range(1, len(SOLVERS) + 1)]
+    runs = run_everywhere(importers, tmp_path, [name] * len(SOLVERS), version, platform, kind, settings)
+    for method, (native, other) in zip(SOLVERS, runs):
         assert native == other if kind == "qemu" else largest_deviation(native, other) < 1e-11, method

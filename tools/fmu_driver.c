@@ -3,6 +3,8 @@
  * numbers can be compared with the x86_64 Linux binary's.
  *
  *   fmu_driver LIBRARY VERSION TOKEN STOP STEP OUTPUTS [real:VR=VALUE | int:VR=VALUE]...
+ *   fmu_driver --jobs < JOBS      one such argument list per line of JOBS, run one after the other
+ *                                 (one process: under Wine or qemu its start costs more than a run)
  *
  * VERSION is 2 or 3, OUTPUTS a comma-separated list of Real value references. Prints one line per
  * communication point: the time and the outputs as the 16 hexadecimal digits of their IEEE 754 bits
@@ -87,7 +89,7 @@ static void *found(Library library, const char *name)
     return address;
 }
 
-int main(int argc, char **argv)
+static int run(int argc, char **argv)
 {
     unsigned int outputs[MAX_OUTPUTS];
     double values[MAX_OUTPUTS];
@@ -173,4 +175,24 @@ int main(int argc, char **argv)
     printf("status %d\n", status);
     ((FreeInstance)found(library, version == 2 ? "fmi2FreeInstance" : "fmi3FreeInstance"))(c);
     return status == 0 ? 0 : 1;
+}
+
+int main(int argc, char **argv)
+{
+    static char line[1 << 16];
+    char *arguments[MAX_OUTPUTS];
+    int worst = 0;
+    if (argc != 2 || strcmp(argv[1], "--jobs") != 0) return run(argc, argv);
+    while (fgets(line, sizeof line, stdin)) {
+        int n = 1, result;
+        char *token;
+        arguments[0] = argv[0];
+        for (token = strtok(line, " \t\r\n"); token && n < MAX_OUTPUTS; token = strtok(NULL, " \t\r\n"))
+            arguments[n++] = token;
+        if (n == 1) continue;
+        result = run(n, arguments);
+        fflush(stdout);
+        if (result > worst) worst = result;
+    }
+    return worst;
 }
