@@ -119,19 +119,17 @@ class Calls:
         self.float_type = TYPES[version][self.float_type_name]
         self.last_time = ctypes.c_double(0.0)  # fmi3DoStep's lastSuccessfulTime
         self._roles: dict[str, object] = {}
+        self._values: dict[str, object] = {}
+        self.get_real = self.values(self.float_type, False)
+        self.set_real = self.values(self.float_type, True)
         if version == "2.0":
-            self.get_real = _VALUES2(function_address(dll, "fmi2GetReal"))
-            self.set_real = _VALUES2(function_address(dll, "fmi2SetReal"))
             self.do_step = _STEP2(function_address(dll, "fmi2DoStep"))
         else:
-            get, put = (_VALUES3(function_address(dll, n)) for n in ("fmi3GetFloat64", "fmi3SetFloat64"))
             step = _STEP3(function_address(dll, "fmi3DoStep"))
             flags = (ctypes.c_bool * 3)()
             event, terminate, early = (ctypes.addressof(flags) + k * ctypes.sizeof(ctypes.c_bool) for k in range(3))
             last = ctypes.addressof(self.last_time)
-            self._keep = (get, put, step, flags)
-            self.get_real = lambda c, vrs, n, values: get(c, vrs, n, values, n)
-            self.set_real = lambda c, vrs, n, values: put(c, vrs, n, values, n)
+            self._keep = (step, flags)
             self.do_step = lambda c, t, h, no_prior: step(c, t, h, bool(no_prior), event, terminate, early, last)
 
     def __call__(self, role: str, *args) -> int:
@@ -147,12 +145,17 @@ class Calls:
         return function_address(self.dll, name)
 
     def values(self, scalar: ScalarType, setting: bool):
-        """fmiNSet<Type> or fmiNGet<Type> as f(instance, vrs, n, values)."""
+        """fmiNSet<Type> or fmiNGet<Type> as f(instance, vrs, n, values), made once per function."""
         name = scalar.setter if setting else scalar.getter
-        if self.version == "2.0":
-            return _VALUES2(function_address(self.dll, name))
-        function = _VALUES3(function_address(self.dll, name))
-        return lambda c, vrs, n, values: function(c, vrs, n, values, n)
+        made = self._values.get(name)
+        if made is None:
+            if self.version == "2.0":
+                made = _VALUES2(function_address(self.dll, name))
+            else:
+                function = _VALUES3(function_address(self.dll, name))
+                made = lambda c, vrs, n, values: function(c, vrs, n, values, n)  # noqa: E731
+            self._values[name] = made
+        return made
 
     def reader(self, scalar: ScalarType, vrs, n: int):
         """A call reading the n variables `vrs` of one type into the array at an address."""

@@ -261,8 +261,7 @@ class FmuInstance:
             encoded = self._encode(name, value)
             scalar = scalar_type(self.version, self.variables[name])
             vr = ctypes.c_uint(self.reference(name))
-            setter = raw.set_real if scalar is raw.float_type else raw.values(scalar, True)
-            status = setter(raw.component, ctypes.byref(vr), 1, ctypes.byref(scalar.c_type(encoded)))
+            status = raw.values(scalar, True)(raw.component, ctypes.byref(vr), 1, ctypes.byref(scalar.c_type(encoded)))
             worst = max(worst, status)
         return worst
 
@@ -304,8 +303,7 @@ class FmuInstance:
             types = sorted({self.variables[n].type for n in names})
             raise HarnessError(f"{self.path.name}: the integer outputs {', '.join(names)} are of several C types "
                                f"({', '.join(types)}); the harness records integers of one type")
-        scalar = scalars.pop() if scalars else \
-            scalar_type(self.version, _Typed("Integer" if self.version == "2.0" else "UInt64"))
+        scalar = scalars.pop() if scalars else TYPES[self.version]["Integer" if self.version == "2.0" else "UInt64"]
         vrs = (ctypes.c_uint * max(len(names), 1))(*[self.reference(n) for n in names])
         return IntegerReader(np.dtype(scalar.c_type), self.raw.reader(scalar, vrs, len(names)), scalar.getter,
                              vrs, self.raw.function(scalar.getter))
@@ -431,12 +429,6 @@ class FmuInstance:
 
     def __exit__(self, *exc) -> None:
         self.free()
-
-
-@dataclass(frozen=True)
-class _Typed:
-    type: str
-    name: str = "(none)"
 
 
 @dataclass(frozen=True)
