@@ -14,6 +14,7 @@ import pytest
 from harness.fmi.fmus import PROJECT_ROOT, build_dir, build_fmus
 
 EXPECTED_ORDER = {"euler": 1, "midpoint": 2, "heun": 2, "rk3": 3, "rk4": 4, "nystrom5": 5, "rkf45": 4}
+IMPLICIT_ORDER = {"implicit_midpoint": 2, "gauss_legendre4": 4}
 
 
 @pytest.fixture(scope="module")
@@ -84,7 +85,8 @@ def test_solver_order_matches_the_xml_enumeration(tables):
     root = ET.parse(PROJECT_ROOT / "build" / "generated" / "SimplePendulum" / "modelDescription.xml").getroot()
     items = [item.get("name") for item in root.iter("Item") if item.get("name") in tables]
     assert items == list(tables) == ["euler", "midpoint", "heun", "rk3", "rk4", "rkf45", "nystrom5",
-                                     "ab2", "ab3", "ab4", "ab5", "ab6"]
+                                     "ab2", "ab3", "ab4", "ab5", "ab6",
+                                     "implicit_midpoint", "gauss_legendre4", "stormer_verlet"]
 
 
 @pytest.mark.parametrize("name", list(EXPECTED_ORDER))
@@ -95,6 +97,29 @@ def test_runge_kutta_order_conditions(tables, name):
     assert np.allclose(np.triu(a), 0.0), "explicit methods have a strictly lower-triangular A"
     assert t["order"] == EXPECTED_ORDER[name]
     assert satisfied_order(a, b) == EXPECTED_ORDER[name]
+
+
+@pytest.mark.parametrize("name", list(IMPLICIT_ORDER))
+def test_implicit_methods_order_symmetry_and_update(tables, name):
+    """The Gauss-Legendre tableaux: order conditions of their order (and not the next), symmetric
+    (c_i + c_(s+1-i) = 1 and a_ij + a_(s+1-i)(s+1-j) = b_j, so that the adjoint method is the method
+    itself), and the update weights d = b^T A^-1 that spare the evaluation after the Newton solve."""
+    t = tables[name]
+    a, b, c, d = np.array(t["a"]), np.array(t["b"]), np.array(t["c"]), np.array(t["d"])
+    assert t["implicit"] and t["order"] == IMPLICIT_ORDER[name]
+    assert np.allclose(a.sum(axis=1), c, atol=1e-15)
+    assert satisfied_order(a, b) == IMPLICIT_ORDER[name]
+    assert np.allclose(c + c[::-1], 1.0, atol=1e-15)
+    assert np.allclose(a + a[::-1, ::-1], np.broadcast_to(b, a.shape), atol=1e-15)
+    assert np.allclose(d, b @ np.linalg.inv(a), atol=1e-14)
+    # Collocation at the Gauss points: the c_i are the roots of the shifted Legendre polynomial.
+    legendre = np.polynomial.legendre.Legendre.basis(len(c), domain=[0, 1])
+    assert np.allclose(legendre(c), 0.0, atol=1e-14)
+
+
+def test_explicit_tableaux_say_so(tables):
+    explicit = [name for name, t in tables.items() if "a" in t and not t["implicit"]]
+    assert sorted(explicit) == sorted(EXPECTED_ORDER)
 
 
 def test_fehlberg_partner_is_fifth_order(tables):

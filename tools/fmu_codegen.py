@@ -150,7 +150,7 @@ def check(md: ModelDescription) -> None:
     if len(set(names)) != len(names):
         raise ModelDescriptionError(f"{where}: variable names must be unique")
     if md.states:
-        for required in ("solver", "h", "tol", "n_rhs", "n_steps", "n_rejected", "d"):
+        for required in ("solver", "h", "tol", "n_rhs", "n_steps", "n_rejected", "n_jacobians", "n_iterations", "d"):
             if required not in names:
                 raise ModelDescriptionError(f"{where}: a model with states must declare the variable {required}")
 

@@ -18,6 +18,8 @@ static void print_tableau(const ButcherTableau *t, int last)
     for (i = 0; i < t->stages; i++) printf("%s%.17g", i ? ", " : "", t->b[i]);
     printf("], \"e\": [");
     for (i = 0; i < t->stages; i++) printf("%s%.17g", i ? ", " : "", t->e[i]);
+    printf("], \"implicit\": %s, \"d\": [", t->implicit ? "true" : "false");
+    for (i = 0; i < t->stages && t->implicit; i++) printf("%s%.17g", i ? ", " : "", t->d[i]);
     printf("]}%s\n", last ? "" : ",");
 }
 
@@ -35,7 +37,10 @@ int main(void)
     printf("{\n");
     for (solver = 1; solver <= SOLVER_COUNT; solver++) {
         const ButcherTableau *t = tableau_of(solver);
-        if (t) print_tableau(t, 0);
+        if (t) print_tableau(t, solver == SOLVER_COUNT);
+        else if (solver == SOLVER_STORMER_VERLET)
+            printf("  \"%s\": {\"partitioned\": true, \"order\": 2}%s\n", solver_name(solver),
+                   solver == SOLVER_COUNT ? "" : ",");
         else print_adams_bashforth(adams_bashforth_of(solver), solver == SOLVER_COUNT);
     }
     printf("}\n");

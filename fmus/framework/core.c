@@ -307,6 +307,15 @@ static int value_in_range(Instance *inst, const char *function, const VariableIn
                   v->name, vr, value, v->min, v->max);
         return 0;
     }
+#if N_STATES > 0 && !SPLIT_ACCELERATIONS
+    if (v == &INTEGER_VARIABLES[INT_solver] && value == SOLVER_STORMER_VERLET) {
+        log_error(inst, "%s: variable solver (value reference %u) = %d (stormer_verlet) needs accelerations of the "
+                  "form a(t, q) - d v, and %s (allowed here: 1 to %d except %d; implicit_midpoint and gauss_legendre4 "
+                  "are symmetric as well)", function, vr, SOLVER_STORMER_VERLET, SPLIT_REASON, SOLVER_COUNT,
+                  SOLVER_STORMER_VERLET);
+        return 0;
+    }
+#endif
     return 1;
 }
 
@@ -416,24 +425,26 @@ Status core_get_integer(Instance *inst, const char *function, const unsigned int
                         int width)
 {
     const int64_t most = width == 4 ? INT32_MAX : INT64_MAX;
-    int64_t counted[3];
     size_t i;
     if (!core_arrays_present(inst, function, nvr, vr, value)) return STATUS_ERROR;
     for (i = 0; i < nvr; i++)
         if (!integer_reference_known(inst, function, vr[i])) return STATUS_ERROR;
-    counted[0] = (int64_t)(inst->s.integrator.n_rhs > (uint64_t)most ? (uint64_t)most : inst->s.integrator.n_rhs);
-    counted[1] = (int64_t)(inst->s.integrator.n_steps > (uint64_t)most ? (uint64_t)most : inst->s.integrator.n_steps);
-    counted[2] = (int64_t)(inst->s.integrator.n_rejected > (uint64_t)most ? (uint64_t)most
-                                                                          : inst->s.integrator.n_rejected);
     for (i = 0; i < nvr; i++) {
         const int k = (int)(vr[i] - INTEGER_VR_BASE);
         int64_t number = inst->s.integer[k];
 #if N_STATES > 0
-        if (k == INT_n_rhs) number = counted[0];
-        if (k == INT_n_steps) number = counted[1];
-        if (k == INT_n_rejected) number = counted[2];
+        const IntegratorMemory *m = &inst->s.integrator;
+        uint64_t counter = 0;
+        int is_counter = 1;
+        if (k == INT_n_rhs) counter = m->n_rhs;
+        else if (k == INT_n_steps) counter = m->n_steps;
+        else if (k == INT_n_rejected) counter = m->n_rejected;
+        else if (k == INT_n_jacobians) counter = m->n_jacobians;
+        else if (k == INT_n_iterations) counter = m->n_iterations;
+        else is_counter = 0;
+        if (is_counter) number = counter > (uint64_t)most ? most : (int64_t)counter; /* saturates */
 #else
-        (void)counted;
+        (void)most;
 #endif
         if (width == 4)
             ((int32_t *)value)[i] = (int32_t)number;

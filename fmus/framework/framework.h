@@ -72,6 +72,7 @@ enum {
 /* Integrator memory that must survive between fmi2DoStep calls. */
 typedef struct {
     uint64_t n_rhs, n_steps, n_rejected;
+    uint64_t n_jacobians, n_iterations;            /* the implicit methods' Newton solves */
     double ab_history[AB_MAX_STEPS][STATE_SLOTS]; /* past right-hand sides, ring buffer */
     int32_t ab_count;                              /* valid entries in ab_history */
     int32_t ab_head;                               /* slot of the newest entry */
@@ -123,8 +124,9 @@ INTERNAL void log_debug(Instance *inst, const char *fmt, ...);
 /* Index of the first non-finite value among n, or -1 when all are finite. */
 INTERNAL int first_non_finite(const double *values, int n);
 
-/* The current inputs, gathered into a contiguous array. */
+/* The current inputs, gathered into a contiguous array, and an array of inputs put into real[]. */
 INTERNAL void gather_inputs(const Instance *inst, double *u);
+INTERNAL void scatter_inputs(double *real, const double *u);
 
 /* stepper.c: the integration of a communication step from s.time to t + H; `function` names the API
  * function in messages. */

@@ -52,6 +52,17 @@ int first_non_finite(const double *values, int n)
     return -1;
 }
 
+void scatter_inputs(double *real, const double *u)
+{
+#if N_INPUTS > 0
+    int i;
+    for (i = 0; i < N_INPUTS; i++) real[INPUT_VRS[i]] = u[i];
+#else
+    (void)real;
+    (void)u;
+#endif
+}
+
 void gather_inputs(const Instance *inst, double *u)
 {
 #if N_INPUTS > 0

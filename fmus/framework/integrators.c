@@ -5,18 +5,18 @@
  * on polynomials. */
 #include "integrators.h"
 
-const ButcherTableau TABLEAU_EULER = {"euler", 1, 1, {0}, {{0}}, {1}, {0}};
+const ButcherTableau TABLEAU_EULER = {"euler", 1, 1, {0}, {{0}}, {1}, {0}, 0, {0}};
 
-const ButcherTableau TABLEAU_MIDPOINT = {"midpoint", 2, 2, {0, 0.5}, {{0}, {0.5}}, {0, 1}, {0}};
+const ButcherTableau TABLEAU_MIDPOINT = {"midpoint", 2, 2, {0, 0.5}, {{0}, {0.5}}, {0, 1}, {0}, 0, {0}};
 
-const ButcherTableau TABLEAU_HEUN = {"heun", 2, 2, {0, 1}, {{0}, {1}}, {0.5, 0.5}, {0}};
+const ButcherTableau TABLEAU_HEUN = {"heun", 2, 2, {0, 1}, {{0}, {1}}, {0.5, 0.5}, {0}, 0, {0}};
 
 const ButcherTableau TABLEAU_RK3 = {
-    "rk3", 3, 3, {0, 0.5, 1}, {{0}, {0.5}, {-1, 2}}, {1.0 / 6, 4.0 / 6, 1.0 / 6}, {0}};
+    "rk3", 3, 3, {0, 0.5, 1}, {{0}, {0.5}, {-1, 2}}, {1.0 / 6, 4.0 / 6, 1.0 / 6}, {0}, 0, {0}};
 
 const ButcherTableau TABLEAU_RK4 = {
     "rk4", 4, 4, {0, 0.5, 0.5, 1}, {{0}, {0.5}, {0, 0.5}, {0, 0, 1}},
-    {1.0 / 6, 1.0 / 3, 1.0 / 3, 1.0 / 6}, {0}};
+    {1.0 / 6, 1.0 / 3, 1.0 / 3, 1.0 / 6}, {0}, 0, {0}};
 
 const ButcherTableau TABLEAU_NYSTROM5 = {
     "nystrom5", 6, 5, {0, 1.0 / 3, 2.0 / 5, 1, 2.0 / 3, 4.0 / 5},
@@ -26,7 +26,7 @@ const ButcherTableau TABLEAU_NYSTROM5 = {
      {1.0 / 4, -3, 15.0 / 4},
      {2.0 / 27, 10.0 / 9, -50.0 / 81, 8.0 / 81},
      {2.0 / 25, 12.0 / 25, 2.0 / 15, 8.0 / 75}},
-    {23.0 / 192, 0, 125.0 / 192, 0, -81.0 / 192, 125.0 / 192}, {0}};
+    {23.0 / 192, 0, 125.0 / 192, 0, -81.0 / 192, 125.0 / 192}, {0}, 0, {0}};
 
 /* Fehlberg 4(5): the 4th-order solution is propagated, the 5th-order one only estimates the error. */
 const ButcherTableau TABLEAU_RKF45 = {
@@ -39,7 +39,18 @@ const ButcherTableau TABLEAU_RKF45 = {
      {-8.0 / 27, 2, -3544.0 / 2565, 1859.0 / 4104, -11.0 / 40}},
     {25.0 / 216, 0, 1408.0 / 2565, 2197.0 / 4104, -1.0 / 5, 0},
     {16.0 / 135 - 25.0 / 216, 0, 6656.0 / 12825 - 1408.0 / 2565, 28561.0 / 56430 - 2197.0 / 4104,
-     -9.0 / 50 + 1.0 / 5, 2.0 / 55}};
+     -9.0 / 50 + 1.0 / 5, 2.0 / 55}, 0, {0}};
+
+/* Gauss-Legendre collocation: implicit midpoint (1 stage, order 2) and 2 stages (order 4), both
+ * symmetric. With r = sqrt(3): c = 1/2 -+ r/6, A = [[1/4, 1/4 - r/6], [1/4 + r/6, 1/4]], b = (1/2, 1/2),
+ * and d = b^T A^-1 = (-r, r). */
+#define SQRT3 1.7320508075688772
+const ButcherTableau TABLEAU_IMPLICIT_MIDPOINT = {"implicit_midpoint", 1, 2, {0.5}, {{0.5}}, {1}, {0}, 1, {2}};
+const ButcherTableau TABLEAU_GAUSS_LEGENDRE4 = {
+    "gauss_legendre4", 2, 4, {0.5 - SQRT3 / 6, 0.5 + SQRT3 / 6},
+    {{0.25, 0.25 - SQRT3 / 6}, {0.25 + SQRT3 / 6, 0.25}}, {0.5, 0.5}, {0}, 1, {-SQRT3, SQRT3}};
+
+const char STORMER_VERLET_NAME[] = "stormer_verlet";
 
 const AdamsBashforth AB2 = {"ab2", 2, {3.0 / 2, -1.0 / 2}, &TABLEAU_RK4};
 const AdamsBashforth AB3 = {"ab3", 3, {23.0 / 12, -16.0 / 12, 5.0 / 12}, &TABLEAU_RK4};
@@ -146,6 +157,15 @@ ENGINE_INLINE void runge_kutta_step(const Evaluator *f, int mode, const ButcherT
     UNROLL for (i = 0; i < N_STATES; i++) x[i] += h * weighted_sum(tab->b, tab->stages, k, i);
 }
 
+/* A checking pass's test of a substep's result: whether it is rejected (x is then back at saved). */
+ENGINE_INLINE int rejected(RightHandSide *f, double t, double *x, const double *saved)
+{
+    f->checks++;
+    if (f->acceptable(f->context, t, x)) return 0;
+    memcpy(x, saved, STATE_SLOTS * sizeof(double));
+    return 1;
+}
+
 ENGINE_INLINE int64_t runge_kutta_loop(RightHandSide *f, int mode, const ButcherTableau *tab, double *x, double t0,
                                        double hs, int64_t first, int64_t n, int check_each)
 {
@@ -157,13 +177,9 @@ ENGINE_INLINE int64_t runge_kutta_loop(RightHandSide *f, int mode, const Butcher
         if (check_each) memcpy(saved, x, sizeof saved);
         evaluate(&e, mode, t, x, f0);
         runge_kutta_step(&e, mode, tab, t, hs, x, f0, NULL);
-        if (check_each) {
-            f->checks++;
-            if (!f->acceptable(f->context, t + hs, x)) {
-                memcpy(x, saved, sizeof saved);
-                f->evaluations += (uint64_t)(i - first + 1) * (uint64_t)tab->stages;
-                return i - first;
-            }
+        if (check_each && rejected(f, t + hs, x, saved)) {
+            f->evaluations += (uint64_t)(i - first + 1) * (uint64_t)tab->stages;
+            return i - first;
         }
     }
     f->evaluations += (uint64_t)n * (uint64_t)tab->stages;
@@ -203,14 +219,179 @@ ENGINE_INLINE int64_t adams_bashforth_loop(RightHandSide *f, int mode, const Ada
                 x[q] += hs * sum;
             }
         }
-        if (check_each) {
-            f->checks++;
-            if (!f->acceptable(f->context, t + hs, x)) {
-                memcpy(x, saved, sizeof saved);
-                *m = saved_memory;
-                return i - first;
-            }
+        if (check_each && rejected(f, t + hs, x, saved)) {
+            *m = saved_memory;
+            return i - first;
         }
+    }
+    return n;
+}
+
+/* Dense LU factorization with partial pivoting, in place (row-major n x n); 0 when singular. */
+static int lu_factor(double *a, int n, int *pivot)
+{
+    int i, j, k;
+    for (k = 0; k < n; k++) {
+        int best = k;
+        for (i = k + 1; i < n; i++)
+            if (fabs(a[i * n + k]) > fabs(a[best * n + k])) best = i;
+        pivot[k] = best;
+        if (!(a[best * n + k] != 0.0) || !isfinite(a[best * n + k])) return 0;
+        if (best != k)
+            for (j = 0; j < n; j++) {
+                const double swap = a[k * n + j];
+                a[k * n + j] = a[best * n + j];
+                a[best * n + j] = swap;
+            }
+        for (i = k + 1; i < n; i++) {
+            const double factor = a[i * n + k] / a[k * n + k];
+            a[i * n + k] = factor;
+            for (j = k + 1; j < n; j++) a[i * n + j] -= factor * a[k * n + j];
+        }
+    }
+    return 1;
+}
+
+static void lu_solve(const double *a, int n, const int *pivot, double *b)
+{
+    int i, j;
+    for (i = 0; i < n; i++) {
+        const double swap = b[i];
+        b[i] = b[pivot[i]];
+        b[pivot[i]] = swap;
+        for (j = 0; j < i; j++) b[i] -= a[i * n + j] * b[j];
+    }
+    for (i = n - 1; i >= 0; i--) {
+        for (j = i + 1; j < n; j++) b[i] -= a[i * n + j] * b[j];
+        b[i] /= a[i * n + i];
+    }
+}
+
+/* One step of an implicit (collocation) method, in place on x. Simplified Newton: the Jacobian at the
+ * step's start, I - h (A (x) J) factored once, the stage increments Z from zero. Returns 0 (x unchanged)
+ * when the Jacobian is not finite or, setting f->unconverged, when the iteration does not converge. */
+static int implicit_step(RightHandSide *f, const Evaluator *e, int mode, const ButcherTableau *tab, double t,
+                         double h, double *x)
+{
+    enum { DIM = IMPLICIT_MAX_STAGES * STATE_SLOTS };
+    const int s = tab->stages, dim = s * N_STATES;
+    double J[STATE_SLOTS * STATE_SLOTS], newton[DIM * DIM], Z[IMPLICIT_MAX_STAGES][STATE_SLOTS];
+    double F[IMPLICIT_MAX_STAGES][STATE_SLOTS], r[DIM], y[STATE_SLOTS], u[INPUT_SLOTS];
+    double previous = INFINITY;
+    int pivot[DIM], i, j, p, q, iteration;
+    if (mode == FORCES_VARY)
+        for (i = 0; i < N_INPUTS; i++) u[i] = e->u0[i] + (t - e->t0) * e->du[i];
+    else if (mode == FORCES_HELD)
+        for (i = 0; i < N_INPUTS; i++) u[i] = e->u0[i];
+    f->jacobian(f->context, t, x, mode == FORCES_NONE ? NULL : u, J);
+    f->jacobians++;
+    if (first_non_finite(J, N_STATES * N_STATES) >= 0) return 0;
+    for (i = 0; i < s; i++)
+        for (p = 0; p < N_STATES; p++)
+            for (j = 0; j < s; j++)
+                for (q = 0; q < N_STATES; q++)
+                    newton[(i * N_STATES + p) * dim + j * N_STATES + q] =
+                        (i == j && p == q ? 1.0 : 0.0) - h * tab->a[i][j] * J[p * N_STATES + q];
+    if (!lu_factor(newton, dim, pivot)) {
+        f->unconverged = 1;
+        return 0;
+    }
+    memset(Z, 0, sizeof Z);
+    for (iteration = 1; iteration <= NEWTON_MAX_ITERATIONS; iteration++) {
+        double norm = 0.0;
+        for (i = 0; i < s; i++) {
+            for (p = 0; p < N_STATES; p++) y[p] = x[p] + Z[i][p];
+            evaluate(e, mode, t + tab->c[i] * h, y, F[i]);
+        }
+        f->evaluations += (uint64_t)s;
+        f->iterations++;
+        for (i = 0; i < s; i++)
+            for (p = 0; p < N_STATES; p++) {
+                double sum = 0.0;
+                for (j = 0; j < s; j++) sum += tab->a[i][j] * F[j][p];
+                r[i * N_STATES + p] = h * sum - Z[i][p];
+            }
+        lu_solve(newton, dim, pivot, r);
+        for (i = 0; i < s; i++)
+            for (p = 0; p < N_STATES; p++) {
+                const double scaled = fabs(r[i * N_STATES + p]) / (1.0 + fabs(x[p]));
+                Z[i][p] += r[i * N_STATES + p];
+                if (!(scaled <= norm)) norm = scaled; /* NaN sticks */
+            }
+        if (norm <= NEWTON_TOLERANCE) break;
+        if (!(norm < previous)) { /* no longer shrinking: rounding reached, or diverging */
+            if (norm <= NEWTON_PLATEAU) break;
+            f->unconverged = 1;
+            return 0;
+        }
+        previous = norm;
+    }
+    if (iteration > NEWTON_MAX_ITERATIONS) {
+        f->unconverged = 1;
+        return 0;
+    }
+    for (p = 0; p < N_STATES; p++) {
+        double sum = tab->d[0] * Z[0][p];
+        for (i = 1; i < s; i++) sum += tab->d[i] * Z[i][p];
+        x[p] += sum;
+    }
+    return 1;
+}
+
+static int64_t implicit_loop(RightHandSide *f, int mode, const ButcherTableau *tab, double *x, double t0, double hs,
+                             int64_t first, int64_t n, int check_each)
+{
+    const Evaluator e = evaluator_of(f);
+    double saved[STATE_SLOTS];
+    int64_t i;
+    for (i = first; i < first + n; i++) {
+        const double t = t0 + (double)i * hs;
+        memcpy(saved, x, sizeof saved);
+        if (!implicit_step(f, &e, mode, tab, t, hs, x)) return i - first;
+        if (check_each && rejected(f, t + hs, x, saved)) return i - first;
+    }
+    return n;
+}
+
+/* The accelerations a(t, q) of a model whose accelerations are a(t, q) - d v (SPLIT_ACCELERATIONS):
+ * the right-hand side at zero velocities, in g[N_COORDINATES ...]. */
+ENGINE_INLINE void accelerations(const Evaluator *e, int mode, double t, const double *x, double *g)
+{
+    double y[STATE_SLOTS];
+    int j;
+    UNROLL for (j = 0; j < N_COORDINATES; j++) {
+        y[j] = x[j];
+        y[N_COORDINATES + j] = 0.0;
+    }
+    evaluate(e, mode, t, y, g);
+}
+
+/* Stormer-Verlet for q' = v, v' = a(t, q) - d v in its symmetric form for velocity-dependent forces:
+ * v+ = v + h/2 (a(t, q) - d v+), q1 = q + h v+, v1 = v+ + h/2 (a(t + h, q1) - d v+). Without damping
+ * it is the symplectic velocity Verlet; a(t + h, q1) starts the next step. */
+ENGINE_INLINE int64_t stormer_verlet_loop(RightHandSide *f, int mode, double *x, double t0, double hs, int64_t first,
+                                          int64_t n, int check_each)
+{
+    const Evaluator e = evaluator_of(f);
+    const double damping = f->model->d;
+    const double shrink = 1.0 / (1.0 + 0.5 * hs * damping);
+    double g[STATE_SLOTS], saved[STATE_SLOTS], v_half[STATE_SLOTS];
+    int64_t i;
+    int j;
+    accelerations(&e, mode, t0 + (double)first * hs, x, g);
+    f->evaluations++;
+    for (i = first; i < first + n; i++) {
+        const double t = t0 + (double)i * hs;
+        if (check_each) memcpy(saved, x, sizeof saved);
+        UNROLL for (j = 0; j < N_COORDINATES; j++) {
+            v_half[j] = (x[N_COORDINATES + j] + 0.5 * hs * g[N_COORDINATES + j]) * shrink;
+            x[j] += hs * v_half[j];
+        }
+        accelerations(&e, mode, t + hs, x, g);
+        f->evaluations++;
+        UNROLL for (j = 0; j < N_COORDINATES; j++)
+            x[N_COORDINATES + j] = v_half[j] + 0.5 * hs * (g[N_COORDINATES + j] - damping * v_half[j]);
+        if (check_each && rejected(f, t + hs, x, saved)) return i - first;
     }
     return n;
 }
@@ -225,6 +406,8 @@ const ButcherTableau *tableau_of(int solver)
     case SOLVER_RK4: return &TABLEAU_RK4;
     case SOLVER_RKF45: return &TABLEAU_RKF45;
     case SOLVER_NYSTROM5: return &TABLEAU_NYSTROM5;
+    case SOLVER_IMPLICIT_MIDPOINT: return &TABLEAU_IMPLICIT_MIDPOINT;
+    case SOLVER_GAUSS_LEGENDRE4: return &TABLEAU_GAUSS_LEGENDRE4;
     default: return NULL;
     }
 }
@@ -245,6 +428,7 @@ const char *solver_name(int solver)
 {
     const ButcherTableau *tab = tableau_of(solver);
     const AdamsBashforth *ab = adams_bashforth_of(solver);
+    if (solver == SOLVER_STORMER_VERLET) return STORMER_VERLET_NAME;
     return tab ? tab->name : ab ? ab->name : "unknown solver";
 }
 
@@ -253,6 +437,8 @@ double evaluations_needed(int solver, int history, double substeps)
     const ButcherTableau *tab = tableau_of(solver);
     const AdamsBashforth *ab = adams_bashforth_of(solver);
     double starts;
+    if (solver == SOLVER_STORMER_VERLET) return substeps + ceil(substeps / CHECK_BLOCK); /* one per block start */
+    if (tab && tab->implicit) return substeps * (tab->stages * NEWTON_MAX_ITERATIONS + N_STATES);
     if (tab || !ab) return substeps * (tab ? tab->stages : 1);
     /* substep i starts with a Runge-Kutta step while history + i + 1 < steps (adams_bashforth_loop) */
     starts = (double)(ab->steps - 1 - history);
@@ -278,6 +464,13 @@ ENGINE_INLINE int64_t fixed_loop(RightHandSide *f, int mode, int solver, Integra
     case SOLVER_AB4: return adams_bashforth_loop(f, mode, &AB4, memory, x, t0, hs, first, n, check_each);
     case SOLVER_AB5: return adams_bashforth_loop(f, mode, &AB5, memory, x, t0, hs, first, n, check_each);
     case SOLVER_AB6: return adams_bashforth_loop(f, mode, &AB6, memory, x, t0, hs, first, n, check_each);
+    case SOLVER_IMPLICIT_MIDPOINT:
+        return implicit_loop(f, mode, &TABLEAU_IMPLICIT_MIDPOINT, x, t0, hs, first, n, check_each);
+    case SOLVER_GAUSS_LEGENDRE4:
+        return implicit_loop(f, mode, &TABLEAU_GAUSS_LEGENDRE4, x, t0, hs, first, n, check_each);
+#if SPLIT_ACCELERATIONS
+    case SOLVER_STORMER_VERLET: return stormer_verlet_loop(f, mode, x, t0, hs, first, n, check_each);
+#endif
     default: return -1;
     }
 }

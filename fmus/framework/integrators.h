@@ -20,6 +20,10 @@ typedef struct {
     double b[RK_MAX_STAGES];
     /* Embedded error weights (b of the higher-order partner minus b); all zero without a partner. */
     double e[RK_MAX_STAGES];
+    /* Implicit methods (a full A): solved for the stage increments Z_i = h sum_j a_ij f(t + c_j h, x + Z_j)
+     * by Newton's method, then x += sum_i d_i Z_i with d = b^T A^-1 (no evaluation after the solve). */
+    int implicit;
+    double d[RK_MAX_STAGES];
 } ButcherTableau;
 
 typedef struct {
@@ -30,7 +34,20 @@ typedef struct {
 } AdamsBashforth;
 
 extern INTERNAL const ButcherTableau TABLEAU_EULER, TABLEAU_MIDPOINT, TABLEAU_HEUN, TABLEAU_RK3, TABLEAU_RK4,
-    TABLEAU_NYSTROM5, TABLEAU_RKF45;
+    TABLEAU_NYSTROM5, TABLEAU_RKF45, TABLEAU_IMPLICIT_MIDPOINT, TABLEAU_GAUSS_LEGENDRE4;
+
+/* Newton's iteration of the implicit methods: at most this many iterations per step. Converged when
+ * the largest scaled correction max |dZ_i| / (1 + |x_i|) is below NEWTON_TOLERANCE, or when it stops
+ * shrinking below NEWTON_PLATEAU (rounding reached); not converged otherwise (the step is discarded). */
+#define NEWTON_MAX_ITERATIONS 12
+#define NEWTON_TOLERANCE 1e-15
+#define NEWTON_PLATEAU 1e-10
+#define IMPLICIT_MAX_STAGES 2
+extern INTERNAL const char STORMER_VERLET_NAME[];
+
+/* Substeps between two checks of the state in a fixed-step pass: a failure costs at most this many
+ * substeps redone, and the checks cost one evaluation per block. */
+#define CHECK_BLOCK 64
 extern INTERNAL const AdamsBashforth AB2, AB3, AB4, AB5, AB6;
 
 /* The right-hand side as the engines see it: the model, and inputs that vary linearly over the
@@ -45,6 +62,10 @@ typedef struct {
     uint64_t evaluations;
     uint64_t checks; /* calls of acceptable: each evaluates the right-hand side and the outputs once */
     uint64_t budget; /* rkf45 stops before a step that would take evaluations plus checks past this */
+    uint64_t jacobians, iterations; /* the implicit methods' Jacobians and Newton iterations */
+    int unconverged; /* set when an implicit method stopped because Newton's iteration did not converge */
+    /* J (N_STATES x N_STATES, row-major, J[i][j] = df_i/dx_j) at (t, x) with inputs u (NULL: all zero). */
+    void (*jacobian)(void *context, double t, const double *x, const double *u, double *J);
     /* Whether a state is good enough to continue from (finite, not singular, finite outputs);
      * called only in checking passes, never in the hot loop. */
     int (*acceptable)(void *context, double t, const double *x);
@@ -72,7 +93,8 @@ INTERNAL const AdamsBashforth *adams_bashforth_of(int solver);
 INTERNAL const char *solver_name(int solver);
 /* Right-hand-side evaluations a fixed-step solver makes in `substeps` steps: its stages per step,
  * or for Adams-Bashforth one per step plus its Runge-Kutta start where `history` (the points it
- * keeps) is too short. */
+ * keeps) is too short; for the implicit methods the most their iterations can take, each Jacobian
+ * counted as one evaluation per state. */
 INTERNAL double evaluations_needed(int solver, int history, double substeps);
 
 #endif

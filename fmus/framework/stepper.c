@@ -7,10 +7,6 @@
 
 #include "integrators.h"
 
-/* Substeps between two checks of the state in a fixed-step pass: a failure costs at most this many
- * substeps redone, and the checks cost one evaluation per block. */
-#define CHECK_BLOCK 64
-
 
 /* Forgets the Adams-Bashforth history and the rkf45 step proposal: after a reset, or when solver,
  * h or tol change. */
@@ -116,12 +112,48 @@ static Status finish_with(Instance *inst, double t, double H, const double *chec
     return status;
 }
 
-static Status fail(Instance *inst, const char *function, double t, double t_good, const char *method, double h)
+static Status fail(Instance *inst, const char *function, double t, double t_good, const char *method, double h,
+                   int unconverged)
 {
     finish(inst, t, t_good - t, t_good);
-    log_discard(inst, "%s: %s with h = %g: the state would become non-finite or singular in the substep "
-                "after t = %.17g; stopped there (last successful time %.17g)", function, method, h, t_good, t_good);
+    if (unconverged)
+        log_discard(inst, "%s: %s with h = %g: Newton's iteration did not converge (%d iterations at most, scaled "
+                    "correction below %g) in the substep after t = %.17g; stopped there (last successful time "
+                    "%.17g): take a smaller h", function, method, h, NEWTON_MAX_ITERATIONS, NEWTON_TOLERANCE, t_good,
+                    t_good);
+    else
+        log_discard(inst, "%s: %s with h = %g: the state would become non-finite or singular in the substep "
+                    "after t = %.17g; stopped there (last successful time %.17g)", function, method, h, t_good,
+                    t_good);
     return STATUS_DISCARD;
+}
+
+/* The work of a call, into the counters. */
+static void count_work(IntegratorMemory *memory, const RightHandSide *f)
+{
+    memory->n_rhs += f->evaluations;
+    memory->n_jacobians += f->jacobians;
+    memory->n_iterations += f->iterations;
+}
+
+/* J = df/dx at (t, x) with inputs u (NULL: zero), a column per state from the model's exact
+ * directional derivative. */
+static void jacobian_at(void *context, double t, const double *x, const double *u, double *J)
+{
+    const Instance *inst = (const Instance *)context;
+    double real[N_REAL], change[N_REAL], dx[STATE_SLOTS], ddx[STATE_SLOTS];
+    double seed[STATE_SLOTS] = {0}, seed_u[INPUT_SLOTS] = {0}, zero[INPUT_SLOTS] = {0};
+    int i, j;
+    memcpy(real, inst->s.real, sizeof real);
+    memcpy(real, x, N_STATES * sizeof(double));
+    scatter_inputs(real, u ? u : zero);
+    model_equations(&inst->constants, t, x, u, dx);
+    for (j = 0; j < N_STATES; j++) {
+        seed[j] = 1.0;
+        model_directional(&inst->constants, t, real, dx, seed, seed_u, ddx, change);
+        seed[j] = 0.0;
+        for (i = 0; i < N_STATES; i++) J[i * N_STATES + j] = ddx[i];
+    }
 }
 
 Status step_to(Instance *inst, const char *function, double t, double H)
@@ -153,7 +185,11 @@ Status step_to(Instance *inst, const char *function, double t, double H)
     f.evaluations = 0;
     f.checks = 0;
     f.budget = (uint64_t)MAX_EVALUATIONS_PER_CALL - 1; /* one check of the end state stays in the budget */
+    f.jacobians = 0;
+    f.iterations = 0;
+    f.unconverged = 0;
     f.acceptable = state_acceptable;
+    f.jacobian = jacobian_at;
     f.context = inst;
 
     {
@@ -161,7 +197,7 @@ Status step_to(Instance *inst, const char *function, double t, double H)
         for (i = 0; i < N_INPUTS; i++) u_mid[i] = f.u0[i] + 0.5 * H * f.du[i];
         memcpy(closed, x, sizeof closed);
         if (model_closed_form_step(&inst->constants, H, u_mid, closed)) {
-            if (!evaluate_at(inst, t + H, closed, checked)) return fail(inst, function, t, t, "closed form", H);
+            if (!evaluate_at(inst, t + H, closed, checked)) return fail(inst, function, t, t, "closed form", H, 0);
             memcpy(x, closed, sizeof closed);
             memory->n_steps++;
             return finish_with(inst, t, H, checked, f.inputs_vary);
@@ -178,7 +214,7 @@ Status step_to(Instance *inst, const char *function, double t, double H)
         f.checks++;
         if (reporting) {
             if (reached == t_end && evaluate_at(inst, reached, x, checked)) {
-                memory->n_rhs += f.evaluations;
+                count_work(memory, &f);
                 return finish_with(inst, t, H, checked, f.inputs_vary);
             }
         } else if (!evaluate_at(inst, reached, x, checked)) { /* outputs overflowed although the state stayed finite: redo, checking */
@@ -187,10 +223,10 @@ Status step_to(Instance *inst, const char *function, double t, double H)
             /* the checking pass runs on what is left of the budget */
             reached = integrate_adaptive(&f, memory, x, t, t_end, h, s->real[VR_tol], 1);
         } else if (reached == t_end) {
-            memory->n_rhs += f.evaluations;
+            count_work(memory, &f);
             return finish_with(inst, t, H, checked, f.inputs_vary);
         }
-        memory->n_rhs += f.evaluations;
+        count_work(memory, &f);
         if (reached < t_end) {
             finish(inst, t, reached - t, reached);
             if (f.evaluations + f.checks + (uint64_t)TABLEAU_RKF45.stages > f.budget)
@@ -244,15 +280,17 @@ Status step_to(Instance *inst, const char *function, double t, double H)
                 if (evaluate_at(inst, t_block_end, x, checked)) continue;
             }
             if (!reporting) { /* the reporting pass checked every substep already: x is the last good one */
+                f.unconverged = 0; /* the checking pass finds the first failure again, whatever it is */
                 memcpy(x, x_block, sizeof x_block);
                 *memory = memory_block;
                 done = integrate_fixed(&f, solver, memory, x, t, hs, first, count, 1);
             }
-            memory->n_rhs += f.evaluations;
+            count_work(memory, &f);
             memory->ab_count = 0;
-            return fail(inst, function, t, first + done == n ? t + H : t + (double)(first + done) * hs, method, h);
+            return fail(inst, function, t, first + done == n ? t + H : t + (double)(first + done) * hs, method, h,
+                        f.unconverged);
         }
-        memory->n_rhs += f.evaluations;
+        count_work(memory, &f);
         return finish_with(inst, t, H, checked, f.inputs_vary);
     }
 }

@@ -1,5 +1,6 @@
-"""The FMUs' integration methods: names, orders and descriptions, in the order of the `Solver`
-enumeration (item values 1, 2, ...). The generated model descriptions take them from here."""
+"""The FMUs' integration methods (names, orders, kinds and descriptions, in the order of the `Solver`
+enumeration: item values 1, 2, ...) and the counters the FMUs report. The generated model
+descriptions take them from here."""
 from __future__ import annotations
 
 from dataclasses import dataclass
@@ -11,6 +12,9 @@ class Method:
     order: int
     fixed_step: bool
     description: str
+    symmetric: bool = False  # time-reversible: bounded energy error over long runs
+    implicit: bool = False   # solved per step by Newton's method with the exact Jacobian
+    needs_constant_mass: bool = False  # only for objects whose mass matrix is constant
 
 
 METHODS = (
@@ -26,7 +30,28 @@ METHODS = (
     Method("ab4", 4, True, "Adams-Bashforth 4-step"),
     Method("ab5", 5, True, "Adams-Bashforth 5-step"),
     Method("ab6", 6, True, "Adams-Bashforth 6-step (nystrom5 start)"),
+    Method("implicit_midpoint", 2, True, "implicit midpoint rule, symmetric, order 2 (Newton per step)",
+           symmetric=True, implicit=True),
+    Method("gauss_legendre4", 4, True, "2-stage Gauss-Legendre, symmetric, order 4 (Newton per step)",
+           symmetric=True, implicit=True),
+    Method("stormer_verlet", 2, True, "Stormer-Verlet, symmetric, order 2 (objects with a constant mass matrix)",
+           symmetric=True, needs_constant_mass=True),
 )
 SOLVERS = tuple(m.name for m in METHODS)
 FIXED_STEP = tuple(m.name for m in METHODS if m.fixed_step)
 ORDER = {m.name: m.order for m in METHODS}
+SYMMETRIC = tuple(m.name for m in METHODS if m.symmetric)
+IMPLICIT = tuple(m.name for m in METHODS if m.implicit)
+METHOD = {m.name: m for m in METHODS}
+
+# The counters every object with states reports (Integer outputs, in this order after n_rhs).
+COUNTERS = (
+    ("n_rhs", "right-hand-side evaluations since initialization (Model Exchange: each new state, time or input the "
+              "importer evaluates)"),
+    ("n_steps", "accepted internal steps (closed-form evaluations for the linear model)"),
+    ("n_rejected", "steps rejected by the rkf45 error test"),
+    ("n_jacobians", "Jacobians of the right-hand side evaluated by the implicit methods (one per step, each from "
+                    "one directional derivative per state)"),
+    ("n_iterations", "Newton iterations of the implicit methods (each evaluates the right-hand side once per stage)"),
+)
+COUNTER_NAMES = tuple(name for name, _ in COUNTERS)

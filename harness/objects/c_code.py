@@ -271,6 +271,7 @@ def generate_c(derivation: Derivation) -> GeneratedC:
 
     header = _HEADER.format(
         identifier=spec.identifier, n=n, nf=nf, has_linear=1 if has_linear else 0,
+        split=0 if derivation.split_reason else 1, split_reason=_c_string(derivation.split_reason),
         max_evaluations=MAX_EVALUATIONS_PER_CALL,
         parameter_fields="".join(f" p_{p.name}," for p in parameters).rstrip(","),
         n_constants=max(1, len(constants.definitions)),
@@ -503,6 +504,9 @@ _HEADER = """/* {identifier}: generated from modelDescription/{file} by harness.
 #define N_COORDINATES {n}
 #define N_FORCE_INPUTS {nf}
 #define HAS_LINEAR_MODEL {has_linear}
+/* Stormer-Verlet needs accelerations a(t, q, F) - d v: a constant mass matrix, no velocity in f. */
+#define SPLIT_ACCELERATIONS {split}
+#define SPLIT_REASON "{split_reason}"
 #define MAX_EVALUATIONS_PER_CALL {max_evaluations}.0 /* right-hand sides per fmi2DoStep */
 #include "linear_model.h"
 

@@ -53,6 +53,19 @@ class Derivation:
     def n(self) -> int:
         return len(self.spec.coordinates)
 
+    @property
+    def split_reason(self) -> str:
+        """Why the accelerations are not of the form a(q, t, F) - d v that Stormer-Verlet needs (a mass
+        matrix that is constant, no velocity in f); empty when they are."""
+        spec = self.spec
+        moving = sorted(str(s) for s in self.M.free_symbols & (set(spec.q) | set(spec.v) | {spec.time}))
+        if moving:
+            return f"the mass matrix of {spec.identifier} depends on {', '.join(moving)}"
+        velocities = sorted(str(s) for s in self.f.free_symbols & set(spec.v))
+        if velocities:
+            return f"the accelerations of {spec.identifier} depend on {', '.join(velocities)}"
+        return ""
+
 
 def _expand(expr: sp.Expr) -> sp.Expr:
     return expr.replace(lambda e: isinstance(e, (sp.sin, sp.cos)) and e.args[0].is_Add, _angle_sum)

@@ -4,7 +4,7 @@ Layout (the framework relies on it, and tools/fmu_codegen.py checks it): Real va
 dense from 0 with the states first (coordinates, then velocities), their derivatives next, then
 parameters in file order (with the framework's d, h and tol where the file restates them, else
 appended), force inputs, point outputs, E_kin, E_pot, E; then the Integers: solver, model (when the
-object has a linear model), n_rhs, n_steps, n_rejected.
+object has a linear model), the counters of harness.fmi.methods.COUNTERS.
 """
 from __future__ import annotations
 
@@ -13,7 +13,7 @@ import uuid
 from dataclasses import dataclass
 from xml.sax.saxutils import quoteattr
 
-from harness.fmi.methods import METHODS, SOLVERS
+from harness.fmi.methods import COUNTERS, METHODS, SOLVERS
 from harness.objects.derivation import Derivation
 from harness.objects.object_file import FRAMEWORK_PARAMETERS, ObjectFileError
 
@@ -120,13 +120,8 @@ def variables(derivation: Derivation) -> list[Variable]:
         result.append(Variable("model", "parameter", "fixed", type="Enumeration", declared_type="Model", start=1,
                                description="nonlinear, or the quadratic approximation of T and U about rest solved "
                                            "in closed form per step"))
-    result += [Variable("n_rhs", "output", "discrete", type="Integer", initial="calculated",
-                        description="right-hand-side evaluations since initialization (Model Exchange: each new "
-                                    "state, time or input the importer evaluates)"),
-               Variable("n_steps", "output", "discrete", type="Integer", initial="calculated",
-                        description="accepted internal steps (closed-form evaluations for the linear model)"),
-               Variable("n_rejected", "output", "discrete", type="Integer", initial="calculated",
-                        description="steps rejected by the rkf45 error test")]
+    result += [Variable(name, "output", "discrete", type="Integer", initial="calculated", description=description)
+               for name, description in COUNTERS]
     return result
 
 

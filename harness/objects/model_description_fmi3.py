@@ -23,6 +23,7 @@ from xml.sax.saxutils import quoteattr
 
 import sympy as sp
 
+from harness.fmi.methods import COUNTER_NAMES
 from harness.objects.derivation import Derivation, vanishes
 from harness.objects.model_description import model_description
 
@@ -62,7 +63,7 @@ def dependencies(derivation: Derivation) -> dict[str, set[str]]:
             result[name] = of(velocity[axis] if kind.startswith("v_") else position[axis])
     result["E_kin"], result["E_pot"] = of(derivation.T), of(derivation.U)
     result["E"] = result["E_kin"] | result["E_pot"]
-    for counter in ("n_rhs", "n_steps", "n_rejected"):
+    for counter in COUNTER_NAMES:
         result[counter] = set()
     return result
 

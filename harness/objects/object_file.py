@@ -17,6 +17,8 @@ from pathlib import Path
 import sympy as sp
 from sympy.parsing.sympy_parser import parse_expr, standard_transformations
 
+from harness.fmi.methods import COUNTER_NAMES
+
 # What every object gets from the framework; an object file may restate d, h or tol (to set its
 # default, range or position among the parameters) but may not use the other names.
 # The work one fmi2DoStep may do, in right-hand-side evaluations: a fixed-step method refuses a
@@ -32,7 +34,7 @@ FRAMEWORK_PARAMETERS = {
     "tol": dict(start=1e-6, unit="1", min=1e-14, max=1.0,
                 description="rkf45 tolerance: |err_i| <= tol (1 + |y_i|), RMS norm"),
 }
-RESERVED = {"solver", "model", "n_rhs", "n_steps", "n_rejected", "E_kin", "E_pot", "E", "t", "time"}
+RESERVED = {"solver", "model", *COUNTER_NAMES, "E_kin", "E_pot", "E", "t", "time"}
 FUNCTIONS = {name: getattr(sp, name) for name in (
     "sin", "cos", "tan", "asin", "acos", "atan", "atan2", "sinh", "cosh", "tanh", "exp", "log", "sqrt", "Abs")}
 FUNCTIONS["pi"] = sp.pi

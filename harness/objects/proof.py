@@ -25,7 +25,7 @@ import numpy as np
 
 from harness.errors import HarnessError
 from harness.fmi.fmu_instance import OK, FmuInstance, read_description
-from harness.fmi.methods import METHODS
+from harness.fmi.methods import COUNTER_NAMES, METHODS
 from harness.objects.numeric_route import NumericLagrangian
 from harness.objects.object_file import FRAMEWORK_PARAMETERS, ObjectFileError, ObjectSpec, read_object_file
 
@@ -70,7 +70,7 @@ def _names_of(spec: ObjectSpec) -> list[str]:
         names += [c.name, c.velocity, f"der({c.name})", f"der({c.velocity})"]
     names += [name for force in spec.forces for name in force.inputs.values()]
     names += [name for point in spec.points for name in point.outputs.values()]
-    return names + ["E_kin", "E_pot", "E", "solver", "n_rhs", "n_steps", "n_rejected"]
+    return names + ["E_kin", "E_pot", "E", "solver", *COUNTER_NAMES]
 
 
 def prove(fmu: str | Path, spec: ObjectSpec, samples: int = 6) -> list[Proof]:
