@@ -12,6 +12,10 @@ side by side, interleaved, median of repeats):
 
 The output interval decides how much of the cost is per-call overhead, so the benchmark runs four:
 0.01 s (1001 points), 0.1 s, 1 s and 10 s (the end point only).
+
+Then the harness's own cost per output point: the recorder's run (its native loop, many points per
+call) against the bare C loop it calls (record_rows over all points in one call, nothing around it),
+and against the recorder's Python loop, side by side.
 """
 from __future__ import annotations
 
@@ -33,13 +37,15 @@ from scipy.integrate import solve_ivp  # noqa: E402
 
 from harness.fmi.fmu_instance import FmuInstance  # noqa: E402
 from harness.fmi.fmus import build_dir, build_fmus  # noqa: E402
+from harness.fmi.methods import SOLVERS  # noqa: E402
+from harness.fmi.native_calls import RecordUnit  # noqa: E402
 from harness.fmi.simulation import Recorder, communication_grid  # noqa: E402
 from harness.objects.thesis.equations import Pendulum  # noqa: E402
 from harness.objects.thesis.reference import exact_simple_pendulum  # noqa: E402
 
 TARGET, STOP = 1e-6, 10.0
 FIXED_METHODS = ("rk4", "nystrom5", "ab4", "ab5", "ab6")
-METHOD_CODES = {"rk4": 5, "nystrom5": 7, "ab4": 10, "ab5": 11, "ab6": 12}
+METHOD_CODES = {name: SOLVERS.index(name) + 1 for name in FIXED_METHODS}
 
 
 # extracted FMUs: removed with this folder when the benchmark exits
@@ -180,6 +186,41 @@ def main() -> None:
               f"{medians['list'] / medians['fmu']:>13.2f}")
     print("ratios: median time of the contender / median time of the FMU run through the harness loop "
           f"({args.repeats} interleaved repeats)")
+    harness_cost(fmu, args.repeats)
+
+
+def harness_cost(fmu: Path, repeats: int) -> None:
+    """Per output point: the recorder (native loop) minus the bare C loop, and the Python loop."""
+    grid = communication_grid(0.0, STOP, 0.01)
+    points = len(grid)
+    native_instance, python_instance = FmuInstance(fmu, name="native"), FmuInstance(fmu, name="python")
+    native = Recorder(native_instance, grid, ["x", "y"])
+    python = Recorder(python_instance, grid, ["x", "y"], native=False)
+    unit = native._keep
+    record_rows = native.rows
+
+    def start(instance):
+        instance.reset()
+        instance.initialize(0.0, solver="ab6", h=0.01)
+
+    def timed(instance, run) -> float:
+        start(instance)  # not timed: the same for all three
+        began = time.perf_counter()
+        run()
+        return time.perf_counter() - began
+    times = {"recorder": [], "bare": [], "python": []}
+    for _ in range(repeats):
+        times["recorder"].append(timed(native_instance, native.run))
+        times["bare"].append(timed(native_instance, lambda: record_rows(0, points)))
+        times["python"].append(timed(python_instance, python.run))
+    median = {k: statistics.median(v) for k, v in times.items()}
+    assert isinstance(unit, RecordUnit)
+    print(f"\nper output point ({points} points, ab6 at h = 0.01, medians of {repeats} interleaved runs): "
+          f"bare C loop {1e6 * median['bare'] / points:.3f} us, recorder {1e6 * median['recorder'] / points:.3f} us "
+          f"(harness cost {1e6 * (median['recorder'] - median['bare']) / points:+.3f} us), Python loop "
+          f"{1e6 * median['python'] / points:.3f} us ({median['python'] / median['recorder']:.1f} x the recorder)")
+    native_instance.free()
+    python_instance.free()
 
 
 if __name__ == "__main__":

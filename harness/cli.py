@@ -203,7 +203,8 @@ def command_chart(args: argparse.Namespace) -> int:
     from harness.objects.registry import object_names
     from harness.studies.work_precision import PENDULUMS
     known = list(object_names())
-    objects = list(dict.fromkeys(args.objects or (list(PENDULUMS) if args.kind == "work-precision" else known)))
+    objects = list(dict.fromkeys(args.objects or (list(PENDULUMS) if args.kind in ("work-precision", "long-run")
+                                                  else known)))
     unknown = sorted(set(objects) - set(known))
     if unknown:
         raise HarnessError(f"--objects: {', '.join(unknown)} is not one of {', '.join(known)}")
@@ -220,7 +221,7 @@ def command_chart(args: argparse.Namespace) -> int:
         for name in objects:
             front = pareto_front([p for p in points if p.object == name])
             print(f"{name}: Pareto front (evaluations -> error): "
-                  + ", ".join(f"{p.method} {p.rhs_evals} -> {p.error:.1e}" for p in front))
+                  + ", ".join(f"{p.method} {p.evaluations} -> {p.error:.1e}" for p in front))
     elif args.kind == "stability":
         from harness.studies.charts import stability_charts
         from harness.fmi.fmus import build_dir
@@ -231,11 +232,23 @@ def command_chart(args: argparse.Namespace) -> int:
         write_csv(limits, out / "stability.csv")
         written = [out / "stability.csv", *stability_charts(limits, cases(fmu_dir, args.full, args.quick, objects),
                                                             method_tables(), out)]
-        linear = [x for x in limits if x.theory_limit == x.theory_limit]
+        linear = [x for x in limits if math.isfinite(x.theory_limit)]  # NaN: nonlinear; inf: A-stable
         worst = max(linear, key=lambda x: abs(x.measured_limit / x.theory_limit - 1))
         print(f"{len(limits)} limits measured; largest deviation from the prediction in the linear cases: "
               f"{worst.measured_limit / worst.theory_limit - 1:+.2%} ({worst.object}, {worst.method}, "
               f"d = {worst.damping:.3g}/s)")
+    elif args.kind == "long-run":
+        from harness.fmi.fmus import build_dir
+        from harness.studies.charts import long_run_chart
+        from harness.studies.long_run import CASES, PERIODS, long_run, tasks_for, write_csv
+        cases = [case for case in CASES if not args.objects or case.object in objects]
+        series = long_run(tasks_for(build_dir() / "fmus", cases, PERIODS // 10 if args.quick else PERIODS),
+                          args.scheduler, args.workers)
+        write_csv(series, out / "long-run.csv")
+        written = [out / "long-run.csv", *long_run_chart(series, out)]
+        for case in cases:
+            print(f"{case.object} ({case.description}): fitted energy-error slope " + ", ".join(
+                f"{s.method} {s.slope:.2f}" for s in series if s.object == case.object))
     elif args.kind == "coupling":
         from harness.studies.charts import coupling_chart
         from harness.studies.coupling import coupling_sweep, write_csv
@@ -331,13 +344,14 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("fmu", nargs="+", help=".fmu files or the project's FMU names")
     p.set_defaults(run=command_validate)
 
-    p = sub.add_parser("chart", help="sweeps and their charts: work-precision, stability, coupling")
-    p.add_argument("kind", choices=["work-precision", "stability", "coupling"], help="which sweep")
+    p = sub.add_parser("chart", help="sweeps and their charts: work-precision, stability, long-run, coupling")
+    p.add_argument("kind", choices=["work-precision", "stability", "long-run", "coupling"], help="which sweep")
     p.add_argument("--out", default="charts", help="output folder for the CSV and the PNG/SVG charts")
     p.add_argument("--objects", nargs="+", metavar="NAME", help="objects to include, any of the registry's "
-                   "(default: work-precision the three thesis pendulums, stability every object with a linear model)")
+                   "(default: work-precision and long-run the three thesis pendulums, stability every object with a "
+                   "linear model)")
     p.add_argument("--quick", action="store_true", help="work-precision and stability: every other step, "
-                   "tolerance and damping ratio (a chart in seconds)")
+                   "tolerance and damping ratio; long-run: 1,000 periods instead of 10,000 (a chart in seconds)")
     p.add_argument("--repeats", type=count(1000), default=3, help="timed repeats per point; the median is kept (default 3)")
     p.add_argument("--system", help="coupling: the system (default scenes/coupled_pendulums.json)")
     p.add_argument("--stop", type=positive_number, help="coupling: simulated time [s] (default: the system's)")

@@ -16,6 +16,15 @@ from harness.fmi.fmus import FMU_NAMES, build_dir
 D = ctypes.c_double
 
 
+def serialized_size(fmu) -> int:
+    """The size of this FMU's serialized state, as it reports it."""
+    state, size = ctypes.c_void_p(), ctypes.c_size_t()
+    assert fmu.call("fmi2GetFMUstate", ctypes.byref(state)) == OK
+    assert fmu.call("fmi2SerializedFMUstateSize", state, ctypes.byref(size)) == OK
+    fmu.call("fmi2FreeFMUstate", ctypes.byref(state))
+    return size.value
+
+
 def value_cases() -> list[tuple[str, str, float, str]]:
     cases = []
     for name in FMU_NAMES:
@@ -90,7 +99,8 @@ MISUSE: dict = {
     "NULL FMU state pointer": (lambda f: f.call("fmi2GetFMUstate", None), "FMUstate pointer is NULL"),
     "truncated serialized state": (lambda f: f.call("fmi2DeSerializeFMUstate", ctypes.create_string_buffer(10), 10,
                                                     ctypes.byref(ctypes.c_void_p())), "size = 10"),
-    "garbage serialized state": (lambda f: f.call("fmi2DeSerializeFMUstate", ctypes.create_string_buffer(448), 448,
+    "garbage serialized state": (lambda f: f.call("fmi2DeSerializeFMUstate",
+                                                  ctypes.create_string_buffer(size := serialized_size(f)), size,
                                                   ctypes.byref(ctypes.c_void_p())), "corrupt"),
     "directional derivative with respect to a parameter": (
         lambda f: f.call("fmi2GetDirectionalDerivative", (ctypes.c_uint * 1)(3), 1, (ctypes.c_uint * 1)(10), 1,

@@ -28,8 +28,9 @@ SPEC_DEFAULTS = {
     "SpringPendulum": {"m": 1, "D": 15, "l0": 1, "phi": 0.75 * np.pi, "eps": 0, "omega": 0, "v_eps": 0},
     "Spring": {"k": 10, "c": 0, "l0": 1},
 }
-PENDULUM_OUTPUTS = {"E_kin", "E_pot", "E", "n_rhs", "n_steps", "n_rejected"}
-SOLVERS = ["euler", "midpoint", "heun", "rk3", "rk4", "rkf45", "nystrom5", "ab2", "ab3", "ab4", "ab5", "ab6"]
+PENDULUM_OUTPUTS = {"E_kin", "E_pot", "E", "n_rhs", "n_steps", "n_rejected", "n_jacobians", "n_iterations"}
+SOLVERS = ["euler", "midpoint", "heun", "rk3", "rk4", "rkf45", "nystrom5", "ab2", "ab3", "ab4", "ab5", "ab6",
+           "implicit_midpoint", "gauss_legendre4", "stormer_verlet"]
 
 
 @pytest.mark.compatibility(importer=f"fmpy {fmpy.__version__} validate_fmu", version="2.0", interface="CS, ME", platform="(model description)", criterion="no problem reported")

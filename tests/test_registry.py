@@ -69,7 +69,10 @@ def test_the_stability_chart_has_its_normal_modes(project_with_a_new_object, tmp
         rows = list(csv.DictReader(handle))
     assert rows and {row["object"] for row in rows} == {"Trolley"}
     for row in rows:  # a linear mode: the measured limit where the method's amplification predicts it
-        assert float(row["measured_limit"]) == pytest.approx(float(row["theory_limit"]), rel=0.05)
+        if row["theory_limit"] == "inf":  # A-stable: as long a step as the scan takes (one per 100 periods)
+            assert float(row["measured_limit"]) > 100, row
+        else:
+            assert float(row["measured_limit"]) == pytest.approx(float(row["theory_limit"]), rel=0.05)
 
 
 def test_the_work_precision_chart_measures_it(project_with_a_new_object, tmp_path):

@@ -39,6 +39,9 @@ def test_every_method_and_peer_has_points(sweep):
     for name in OBJECTS:
         for method in [*FIXED_STEP, "rkf45", "scipy-RK45", "scipy-DOP853", "scipy-LSODA", "fmpy-CVode"]:
             mine = [p for p in points if p.object == name and p.method == method]
+            if method == "stormer_verlet":  # none of these objects has a constant mass matrix
+                assert not mine
+                continue
             assert len(mine) >= 2, (name, method)
             assert all(p.rhs_evals > 0 and p.error > 0 for p in mine), (name, method)
         assert all(p.reference_error < 1e-12 for p in points if p.object == name)

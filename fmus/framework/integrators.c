@@ -268,14 +268,16 @@ static void lu_solve(const double *a, int n, const int *pivot, double *b)
 }
 
 /* One step of an implicit (collocation) method, in place on x. Simplified Newton: the Jacobian at the
- * step's start, I - h (A (x) J) factored once, the stage increments Z from zero. Returns 0 (x unchanged)
- * when the Jacobian is not finite or, setting f->unconverged, when the iteration does not converge. */
+ * step's start, I - h (A (x) J) factored once, the stage increments Z starting from the previous
+ * step's (which differ by O(h^2)), or from zero for a loop's first step; Z keeps the solution for the
+ * next step. Returns 0 (x unchanged) when the Jacobian is not finite or, setting f->unconverged, when
+ * the iteration does not converge. */
 static int implicit_step(RightHandSide *f, const Evaluator *e, int mode, const ButcherTableau *tab, double t,
-                         double h, double *x)
+                         double h, double *x, double (*Z)[STATE_SLOTS])
 {
     enum { DIM = IMPLICIT_MAX_STAGES * STATE_SLOTS };
     const int s = tab->stages, dim = s * N_STATES;
-    double J[STATE_SLOTS * STATE_SLOTS], newton[DIM * DIM], Z[IMPLICIT_MAX_STAGES][STATE_SLOTS];
+    double J[STATE_SLOTS * STATE_SLOTS], newton[DIM * DIM];
     double F[IMPLICIT_MAX_STAGES][STATE_SLOTS], r[DIM], y[STATE_SLOTS], u[INPUT_SLOTS];
     double previous = INFINITY;
     int pivot[DIM], i, j, p, q, iteration;
@@ -296,7 +298,6 @@ static int implicit_step(RightHandSide *f, const Evaluator *e, int mode, const B
         f->unconverged = 1;
         return 0;
     }
-    memset(Z, 0, sizeof Z);
     for (iteration = 1; iteration <= NEWTON_MAX_ITERATIONS; iteration++) {
         double norm = 0.0;
         for (i = 0; i < s; i++) {
@@ -324,6 +325,9 @@ static int implicit_step(RightHandSide *f, const Evaluator *e, int mode, const B
             f->unconverged = 1;
             return 0;
         }
+        /* Contracting by rate = norm / previous per iteration, the corrections still to come add up to
+         * about norm rate / (1 - rate): small enough, the iteration has converged. */
+        if (previous < INFINITY && norm * norm / (previous - norm) <= NEWTON_TOLERANCE) break;
         previous = norm;
     }
     if (iteration > NEWTON_MAX_ITERATIONS) {
@@ -342,12 +346,13 @@ static int64_t implicit_loop(RightHandSide *f, int mode, const ButcherTableau *t
                              int64_t first, int64_t n, int check_each)
 {
     const Evaluator e = evaluator_of(f);
-    double saved[STATE_SLOTS];
+    double saved[STATE_SLOTS], Z[IMPLICIT_MAX_STAGES][STATE_SLOTS];
     int64_t i;
+    memset(Z, 0, sizeof Z);
     for (i = first; i < first + n; i++) {
         const double t = t0 + (double)i * hs;
         memcpy(saved, x, sizeof saved);
-        if (!implicit_step(f, &e, mode, tab, t, hs, x)) return i - first;
+        if (!implicit_step(f, &e, mode, tab, t, hs, x, Z)) return i - first;
         if (check_each && rejected(f, t + hs, x, saved)) return i - first;
     }
     return n;

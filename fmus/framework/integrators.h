@@ -36,9 +36,11 @@ typedef struct {
 extern INTERNAL const ButcherTableau TABLEAU_EULER, TABLEAU_MIDPOINT, TABLEAU_HEUN, TABLEAU_RK3, TABLEAU_RK4,
     TABLEAU_NYSTROM5, TABLEAU_RKF45, TABLEAU_IMPLICIT_MIDPOINT, TABLEAU_GAUSS_LEGENDRE4;
 
-/* Newton's iteration of the implicit methods: at most this many iterations per step. Converged when
- * the largest scaled correction max |dZ_i| / (1 + |x_i|) is below NEWTON_TOLERANCE, or when it stops
- * shrinking below NEWTON_PLATEAU (rounding reached); not converged otherwise (the step is discarded). */
+/* Newton's iteration of the implicit methods: at most this many iterations per step. With c_k the
+ * largest scaled correction max |dZ_i| / (1 + |x_i|) of iteration k: converged when c_k, or the
+ * corrections still to come estimated from the contraction rate, c_k^2 / (c_(k-1) - c_k), are below
+ * NEWTON_TOLERANCE, or when c_k stops shrinking below NEWTON_PLATEAU (rounding reached); not converged
+ * otherwise (the step is discarded). */
 #define NEWTON_MAX_ITERATIONS 12
 #define NEWTON_TOLERANCE 1e-15
 #define NEWTON_PLATEAU 1e-10

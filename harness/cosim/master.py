@@ -517,6 +517,7 @@ class Master:
         """The C loop over the same buffers and C functions, run in chunks so that progress is shown
         and rows reach the caller as they come; None when the core is not built."""
         from harness.cosim.native_core import CoreUnit, load_core
+        from harness.fmi.native_calls import fill_calls
         core = load_core()
         if core is None:
             return None
@@ -524,23 +525,13 @@ class Master:
         structs = (CoreUnit * len(self.units))()
         keep = []  # arrays the structs point into
         double_p, int_p = ctypes.POINTER(ctypes.c_double), ctypes.POINTER(ctypes.c_int)
-        kinds = {np.dtype(np.intc): 0, np.dtype(np.int64): 1, np.dtype(np.uint64): 2}
         for struct, unit in zip(structs, self.units):
-            raw = unit.instance.raw
             sources = np.array([index[c.source] for c in unit.inputs] or [0], dtype=np.intc)
             positions = np.array([self.units[index[c.source]].real_outputs.index(c.output) for c in unit.inputs]
                                  or [0], dtype=np.intc)
             keep += [sources, positions]
-            struct.component = unit.component.value
-            struct.fmi3 = int(raw.version == "3.0")
-            struct.set_real, struct.get_real = raw.function(raw.float_type.setter), raw.function(raw.float_type.getter)
-            struct.do_step = raw.function(raw.names["do_step"])
-            struct.get_integer, struct.int_vrs = unit.integers.address, unit.integers.vrs
-            struct.integer_kind = kinds[unit.integers.dtype]
-            if raw.names["input_derivatives"]:
-                struct.set_derivatives = raw.function(raw.names["input_derivatives"])
-            struct.get_derivatives = raw.function(raw.names["output_derivatives"])
-            struct.last_time = ctypes.pointer(raw.last_time)
+            fill_calls(struct.calls, unit.instance.raw, unit.integers)
+            struct.int_vrs = unit.integers.vrs
             struct.n_out, struct.n_in, struct.n_int = unit.n_out, unit.n_in, unit.n_int
             struct.out_vrs, struct.in_vrs = unit.out_vrs, unit.in_vrs
             struct.orders_out, struct.orders_in = unit.orders_out, unit.orders_in

@@ -2,9 +2,8 @@
 from __future__ import annotations
 
 import ctypes
-from pathlib import Path
 
-from harness.fmi.fmus import build_dir
+from harness.fmi.native_calls import FmiCalls, load_library
 
 _double_p = ctypes.POINTER(ctypes.c_double)
 _uint_p = ctypes.POINTER(ctypes.c_uint)
@@ -12,25 +11,20 @@ _int_p = ctypes.POINTER(ctypes.c_int)
 
 
 class CoreUnit(ctypes.Structure):
-    _fields_ = [("component", ctypes.c_void_p), ("set_real", ctypes.c_void_p), ("get_real", ctypes.c_void_p),
-                ("get_integer", ctypes.c_void_p), ("do_step", ctypes.c_void_p), ("set_derivatives", ctypes.c_void_p),
-                ("get_derivatives", ctypes.c_void_p), ("n_out", ctypes.c_int), ("n_in", ctypes.c_int),
+    _fields_ = [("calls", FmiCalls), ("n_out", ctypes.c_int), ("n_in", ctypes.c_int),
                 ("n_int", ctypes.c_int), ("out_vrs", _uint_p), ("in_vrs", _uint_p), ("int_vrs", _uint_p),
                 ("orders_out", _int_p), ("orders_in", _int_p), ("y_now", _double_p), ("dy_now", _double_p),
                 ("y_next", _double_p), ("dy_next", _double_p), ("u", _double_p), ("du", _double_p),
                 ("ints", ctypes.c_void_p), ("source_unit", _int_p), ("source_index", _int_p),
-                ("energy_index", ctypes.c_int), ("fmi3", ctypes.c_int), ("integer_kind", ctypes.c_int),
-                ("last_time", _double_p)]
+                ("energy_index", ctypes.c_int)]
 
 
 def load_core() -> ctypes.CDLL | None:
     """The compiled core, or None when it has not been built (the master then loops in Python)."""
-    path = Path(build_dir()) / "lib" / "cosim_core.so"
-    if not path.is_file():
-        return None
-    library = ctypes.CDLL(str(path))
-    library.cosim_run.argtypes = [ctypes.POINTER(CoreUnit), ctypes.c_int, _double_p, ctypes.c_long, ctypes.c_int,
-                                  ctypes.c_int, _double_p, ctypes.c_long, _double_p, _int_p,
-                                  ctypes.POINTER(ctypes.c_long), _int_p]
-    library.cosim_run.restype = ctypes.c_int
+    library = load_library("cosim_core")
+    if library is not None:
+        library.cosim_run.argtypes = [ctypes.POINTER(CoreUnit), ctypes.c_int, _double_p, ctypes.c_long, ctypes.c_int,
+                                      ctypes.c_int, _double_p, ctypes.c_long, _double_p, _int_p,
+                                      ctypes.POINTER(ctypes.c_long), _int_p]
+        library.cosim_run.restype = ctypes.c_int
     return library

@@ -12,6 +12,7 @@ import math
 import re
 import shutil
 from dataclasses import dataclass, field
+from functools import lru_cache
 from pathlib import Path
 
 import numpy as np
@@ -25,6 +26,7 @@ from harness.archives import extract_fmu
 from harness.errors import HarnessError, first_problem
 from harness.fmi.binaries import checked_identifier, elf_problem
 from harness.fmi.calls import FUNCTIONS, TYPES, Calls, scalar_type
+from harness.fmi.methods import METHODS
 
 # The x86_64 Linux binary's folder, per FMI version.
 PLATFORM_FOLDERS = {"2.0": "linux64", "3.0": "x86_64-linux"}
@@ -353,6 +355,14 @@ class FmuInstance:
     def do_step(self, t: float, H: float) -> int:
         return self.raw.do_step(self.raw.component, t, H, 1)
 
+    def work(self) -> int:
+        """The integration's cost so far in right-hand-side evaluations: n_rhs plus, for the implicit
+        methods, one per state for each Jacobian (n_jacobians; a Jacobian is one directional derivative
+        per state, each about the price of a right-hand side)."""
+        rhs, jacobians = self.get("n_rhs", "n_jacobians")
+        states = sum(1 for v in self.model_description.modelVariables if v.derivative is not None)
+        return int(rhs) + states * int(jacobians)
+
     def last_successful_time(self) -> float:
         if self.version == "3.0":
             return self.raw.last_time.value
@@ -438,3 +448,12 @@ class IntegerReader:
     function: str  # the C function it calls, for messages
     vrs: object    # the value references, for a C loop
     address: int   # that function's address, for a C loop
+
+
+@lru_cache(maxsize=None)
+def accepted_methods(fmu: str) -> tuple[str, ...]:
+    """The integration methods an FMU accepts, in the Solver enumeration's order: every method but
+    stormer_verlet where the object's mass matrix is not constant. Asked of the FMU itself (setting
+    `solver` is refused for a method it lacks), so that the answer is the binary's."""
+    with FmuInstance(fmu, name="probe") as instance:
+        return tuple(m.name for m in METHODS if not m.needs_constant_mass or instance.set(solver=m.name) == OK)

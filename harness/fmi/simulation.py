@@ -16,6 +16,7 @@ import numpy as np
 
 from harness.errors import HarnessError
 from harness.fmi.fmu_instance import DISCARD, ERROR, STATUS_NAMES, FmuInstance
+from harness.fmi.native_calls import AT_FLOATS, AT_INTEGERS, AT_STEP, RecordUnit, fill_calls, load_record_loop
 from harness.fmi.results import TimeTable
 
 
@@ -106,75 +107,121 @@ def simulate(fmu: str | Path, stop_time: float, step: float = 0.01, start_time: 
 
 class Recorder:
     """The stepping loop of one instance over one grid, prepared once and run as often as needed
-    (after each reset and initialization): the get-float call writes straight into the rows of a
-    preallocated table through the instance's own prototypes. This is the loop the sweeps and the
-    benchmarks time."""
+    (after each reset and initialization): the outputs of each communication point go straight into
+    the rows of preallocated tables. The loop runs in C (harness/fmi/native/record_loop.c, many rows
+    per call) when it is built, else in Python through the instance's own prototypes; both have one
+    contract (rows(first, end) below) and give the same table. This is the loop `simulate`, the
+    sweeps and the benchmarks use."""
 
-    def __init__(self, instance: FmuInstance, grid: np.ndarray, outputs: list[str]):
+    FIRST_CHUNK = 256  # rows of the first native call; later calls aim at CHUNK_SECONDS each
+    CHUNK_SECONDS = 0.1  # between two calls an interrupt is seen and progress is shown
+
+    def __init__(self, instance: FmuInstance, grid: np.ndarray, outputs: list[str], native: bool = True):
         self.instance = instance
         real_names, integer_names = instance.recorded_outputs(outputs)
         self.columns = ["time"] + real_names + integer_names
         check_table_size(len(grid), len(self.columns))
         self.n_real, self.n_int = len(real_names), len(integer_names)
-        self.real_vrs = (ctypes.c_uint * self.n_real)(*[instance.reference(n) for n in real_names])
-        self.grid = np.asarray(grid, dtype=float)
+        self.real_vrs = (ctypes.c_uint * max(self.n_real, 1))(*[instance.reference(n) for n in real_names])
+        self.grid = np.ascontiguousarray(grid, dtype=float)
         self.times = self.grid.tolist()
         self.reals = np.zeros((len(grid), max(self.n_real, 1)))
-        integers = instance.integer_reader(integer_names)
-        self.read_integers = integers.read
-        self.integers = np.zeros((len(grid), max(self.n_int, 1)), dtype=integers.dtype)
+        self.integer_reader = instance.integer_reader(integer_names)
+        self.integers = np.zeros((len(grid), max(self.n_int, 1)), dtype=self.integer_reader.dtype)
+        library = load_record_loop() if native else None
+        self.rows = self._native_rows(library) if library is not None else self._python_rows()
+        self.native = library is not None
+
+    def _native_rows(self, library):
+        unit = RecordUnit()
+        fill_calls(unit.calls, self.instance.raw, self.integer_reader)
+        unit.n_real, unit.n_int = self.n_real, self.n_int
+        unit.real_vrs, unit.int_vrs = ctypes.addressof(self.real_vrs), ctypes.addressof(self.integer_reader.vrs)
+        unit.reals, unit.real_stride = self.reals.ctypes.data, self.reals.strides[0]
+        unit.ints, unit.int_stride = self.integers.ctypes.data, self.integers.strides[0]
+        record_rows, grid, unit_p = library.record_rows, self.grid.ctypes.data, ctypes.byref(unit)
+        done, where = ctypes.c_long(), ctypes.c_int()
+        self._keep = unit
+
+        def rows(first: int, end: int) -> tuple[int, int, int]:
+            status = record_rows(unit_p, grid, first, end, ctypes.byref(done), ctypes.byref(where))
+            return status, done.value, where.value
+        return rows
+
+    def _python_rows(self):
+        raw = self.instance.raw
+        component, get_real, read_integers, do_step = raw.component, raw.get_real, self.integer_reader.read, raw.do_step
+        real_vrs, n_real, n_int, times = self.real_vrs, self.n_real, self.n_int, self.times
         # row addresses, computed once
-        self.real_rows = (self.reals.__array_interface__["data"][0] + self.reals.strides[0] * np.arange(len(grid))).tolist()
-        self.int_rows = (self.integers.__array_interface__["data"][0]
-                         + self.integers.strides[0] * np.arange(len(grid))).tolist()
+        real_rows = (self.reals.ctypes.data + self.reals.strides[0] * np.arange(len(times))).tolist()
+        int_rows = (self.integers.ctypes.data + self.integers.strides[0] * np.arange(len(times))).tolist()
+
+        def rows(first: int, end: int) -> tuple[int, int, int]:
+            for i in range(first, end):
+                if i > 0:
+                    status = do_step(component, times[i - 1], times[i] - times[i - 1], 1)
+                    if status == DISCARD or status >= ERROR:
+                        return status, i, AT_STEP
+                if get_real(component, real_vrs, n_real, real_rows[i]) >= ERROR:
+                    return ERROR, i, AT_FLOATS
+                if n_int and read_integers(int_rows[i]) >= ERROR:
+                    return ERROR, i, AT_INTEGERS
+            return 0, end, AT_STEP
+        return rows
 
     def run(self, keep_interrupted: bool = False, progress: Progress | None = None) -> SimulationResult:
-        instance = self.instance
-        name = instance.path.name
-        raw = instance.raw
-        component, get_real, read_integers, do_step = raw.component, raw.get_real, self.read_integers, raw.do_step
-        real_vrs, n_real, n_int = self.real_vrs, self.n_real, self.n_int
-        real_rows, int_rows, times = self.real_rows, self.int_rows, self.times
+        instance, times, rows = self.instance, self.times, self.rows
         discarded_at = None
-
-        def record(row: int) -> None:
-            status = get_real(component, real_vrs, n_real, real_rows[row])
-            if n_int:
-                status = max(status, read_integers(int_rows[row]))
-            if status >= ERROR:
-                raise HarnessError(f"{name}: reading outputs returned {STATUS_NAMES[status]}: "
-                                   f"{instance.last_message()}")
-
-        rows = len(times)
+        total = len(times)
         interrupted = False
-        record(0)
-        i = 1
+        done, chunk = 0, self.FIRST_CHUNK if self.native else 1  # Python: a row per call, so none is lost
         try:
-            for i in range(1, len(times)):
-                t = times[i - 1]
-                status = do_step(component, t, times[i] - t, 1)
-                if status == DISCARD:
+            while done < total:
+                started = time.perf_counter()
+                status, done, where = rows(done, min(total, done + chunk))
+                if status == DISCARD and where == AT_STEP:
+                    t = times[done - 1]
                     discarded_at = instance.last_successful_time()
-                    rows = i
-                    if discarded_at > t:  # the state it got to is a row of its own; else it is row i - 1
-                        record(i)
-                        rows = i + 1
+                    if discarded_at > t:  # the state it got to is a row of its own; else it is row done - 1
+                        status, where = self._read_row(done)
+                        if status >= ERROR:
+                            self._raise(status, done, where)
+                        done += 1
                     break
                 if status >= ERROR:
-                    raise HarnessError(f"{name}: {instance.prefix}DoStep at t = {t} returned {STATUS_NAMES[status]}: "
-                                       f"{instance.last_message()}")
-                record(i)
-                if progress is not None and not i & 63:
-                    progress(times[i], i / (rows - 1))
+                    self._raise(status, done, where)
+                if progress is not None and done < total and (self.native or not done & 63):
+                    progress(times[done - 1], (done - 1) / (total - 1))
+                if self.native:  # calls of about CHUNK_SECONDS each
+                    elapsed = time.perf_counter() - started
+                    chunk = int(min(max(chunk * self.CHUNK_SECONDS / max(elapsed, 1e-9), 1), 4 * chunk, 1 << 24))
         except KeyboardInterrupt:  # the rows before the interrupted step are kept, if the caller wants them
             if not keep_interrupted:
                 raise
-            interrupted, rows, discarded_at = True, i, None
-        table = np.empty((rows, len(self.columns)))
-        table[:, 0] = self.grid[:rows]
-        if discarded_at is not None and rows > 1 and discarded_at > self.grid[rows - 2]:
+            interrupted, discarded_at = True, None
+        table = np.empty((done, len(self.columns)))
+        table[:, 0] = self.grid[:done]
+        if discarded_at is not None and done > 1 and discarded_at > self.grid[done - 2]:
             table[-1, 0] = discarded_at  # the row of the state the discarded step got to
-        table[:, 1:1 + n_real] = self.reals[:rows, :n_real]
-        table[:, 1 + n_real:] = self.integers[:rows, :n_int]
+        table[:, 1:1 + self.n_real] = self.reals[:done, :self.n_real]
+        table[:, 1 + self.n_real:] = self.integers[:done, :self.n_int]
         return SimulationResult(self.columns, table, instance.path.stem, discarded_at,
                                 [str(m) for m in instance.log.messages], interrupted)
+
+    def _read_row(self, row: int) -> tuple[int, int]:
+        """The outputs of the instance as it is now into `row`: (status, the call that failed)."""
+        raw = self.instance.raw
+        if raw.get_real(raw.component, self.real_vrs, self.n_real, self.reals[row].ctypes.data) >= ERROR:
+            return ERROR, AT_FLOATS
+        if self.n_int and self.integer_reader.read(self.integers[row].ctypes.data) >= ERROR:
+            return ERROR, AT_INTEGERS
+        return 0, AT_STEP
+
+    def _raise(self, status: int, row: int, where: int):
+        instance = self.instance
+        if where == AT_STEP:
+            t = self.times[row - 1]
+            raise HarnessError(f"{instance.path.name}: {instance.prefix}DoStep at t = {t} returned "
+                               f"{STATUS_NAMES[status]}: {instance.last_message()}")
+        raise HarnessError(f"{instance.path.name}: reading outputs returned {STATUS_NAMES[status]}: "
+                           f"{instance.last_message()}")

@@ -134,9 +134,9 @@ def charts_section(out: Path) -> Section:
     limits = atlas(fmu_dir, quick=True)
     write_limits(limits, out / "stability.csv")
     stability_charts(limits, cases(fmu_dir, quick=True), method_tables(), out)
-    linear = [x for x in limits if not math.isnan(x.theory_limit)]
+    linear = [x for x in limits if math.isfinite(x.theory_limit)]  # NaN: nonlinear; inf: A-stable
     worst = max(abs(x.measured_limit / x.theory_limit - 1) for x in linear)
-    fronts = [[name, ", ".join(f"{p.method} ({p.rhs_evals} -> {p.error:.0e} m)"
+    fronts = [[name, ", ".join(f"{p.method} ({p.evaluations} -> {p.error:.0e} m)"
                                for p in pareto_front([q for q in points if q.object == name])[-4:])]
               for name in PENDULUMS]
     body = (_image("work-precision.png", "work-precision") + _table(["object", "cheapest most accurate points"],

@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 import math
+import statistics
 from pathlib import Path
 
 import matplotlib
@@ -26,15 +27,15 @@ def save(figure, out: Path, stem: str) -> list[Path]:
 
 
 def work_precision_chart(points: list[Point], out: Path) -> list[Path]:
-    """Error against cost (top: right-hand-side evaluations, bottom: seconds) per object; the Pareto
-    front of each panel drawn as a black staircase through its points."""
+    """Error against cost (top: evaluations, the implicit methods' Jacobian columns included; bottom:
+    seconds) per object; the Pareto front of each panel drawn as a black staircase through its points."""
     objects = list(dict.fromkeys(p.object for p in points))
     methods = list(dict.fromkeys(p.method for p in points))
     colours = plt.get_cmap("tab20")
     figure, axes = plt.subplots(2, len(objects), figsize=(6 * len(objects), 10), squeeze=False)
     for column, name in enumerate(objects):
         mine = [p for p in points if p.object == name and math.isfinite(p.error) and p.error > 0]
-        for row, cost in enumerate(("rhs_evals", "seconds")):
+        for row, cost in enumerate(("evaluations", "seconds")):
             ax = axes[row][column]
             for k, method in enumerate(methods):
                 series = sorted((p for p in mine if p.method == method), key=lambda p: getattr(p, cost))
@@ -57,9 +58,10 @@ def work_precision_chart(points: list[Point], out: Path) -> list[Path]:
             ax.set_yscale("log")
             ax.xaxis.set_minor_formatter(matplotlib.ticker.NullFormatter())
             ax.grid(True, which="major", alpha=0.3)
-            ax.set_xlabel("right-hand-side evaluations" if cost == "rhs_evals" else "seconds (median of repeats)")
+            ax.set_xlabel("evaluations (right-hand sides + Jacobian columns)" if cost == "evaluations"
+                          else "seconds (median of repeats)")
             ax.set_ylabel("largest position error of the traced point [m]")
-            ax.set_title(f"{name}: error against {'evaluations' if cost == 'rhs_evals' else 'time'}")
+            ax.set_title(f"{name}: error against {'evaluations' if cost == 'evaluations' else 'time'}")
     axes[0][-1].legend(fontsize=7, ncol=2, loc="lower left")
     figure.suptitle("Work-precision, 10 s from the default start, communication step 0.01 s")
     figure.tight_layout()
@@ -172,3 +174,38 @@ def coupling_chart(points, out: Path) -> list[Path]:
     figure.suptitle("Coupled pendulums: master configurations against a monolithic reference")
     figure.tight_layout()
     return save(figure, out, "coupling")
+
+
+SYMMETRIC_COLOURS = {"implicit_midpoint": "#c53030", "gauss_legendre4": "#1a365d", "stormer_verlet": "black"}
+
+
+def long_run_chart(series, out: Path) -> list[Path]:
+    """Energy error against time over the long run, log-log, a panel per case; the symmetric methods
+    drawn solid and thick, the others thin."""
+    from harness.fmi.methods import METHOD
+    objects = list(dict.fromkeys(s.object for s in series))
+    methods = list(dict.fromkeys(s.method for s in series))
+    colours = plt.get_cmap("tab20")
+    figure, axes = plt.subplots(1, len(objects), figsize=(6.5 * len(objects), 6), squeeze=False)
+    for ax, name in zip(axes[0], objects):
+        for s in (s for s in series if s.object == name):
+            points = [(t, e) for t, e in zip(s.times, s.errors) if t > 0 and e > 0 and math.isfinite(e)]
+            if not points:
+                continue
+            symmetric = METHOD[s.method].symmetric if s.method in METHOD else False
+            colour = SYMMETRIC_COLOURS.get(s.method) or colours(methods.index(s.method) % 20)
+            ax.plot(*zip(*points), color=colour, linewidth=2.4 if symmetric else 1.0,
+                    linestyle="-" if symmetric else "--", label=f"{s.method} (slope {s.slope:.2f})")
+        ax.set_xscale("log")
+        ax.set_yscale("log")
+        ax.set_ylim(1e-9, 1e4)
+        ax.grid(True, which="major", alpha=0.3)
+        ax.set_xlabel("time [periods]")
+        ax.set_ylabel("largest energy error so far / swing energy")
+        ax.set_title(name)
+        ax.legend(fontsize=6.5, ncol=2, loc="upper left")
+    cost = statistics.median(s.cost_per_period for s in series) if series else 0
+    figure.suptitle(f"Energy error over a long run, every method at about {cost:.0f} evaluations per period "
+                    "(solid: symmetric methods)")
+    figure.tight_layout()
+    return save(figure, out, "long-run")

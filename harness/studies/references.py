@@ -60,7 +60,8 @@ class ObjectRunner:
         return settings
 
     def run(self, overrides: dict) -> tuple[np.ndarray, int]:
-        """Positions (frames, points, width) and the evaluations spent; inf positions after a discard."""
+        """Positions (frames, points, width) and the evaluations spent (`FmuInstance.work`: the implicit
+        methods' Jacobians included); inf positions after a discard."""
         instance = self.instance
         instance.reset()
         instance.initialize(0.0, **{**self.component.start, **overrides})
@@ -71,7 +72,7 @@ class ObjectRunner:
         for k, point in enumerate(self.columns):
             for axis, name in enumerate(point):
                 positions[:rows, k, axis] = result[name][:rows]
-        evaluations = int(instance.get("n_rhs")[0])
+        evaluations = instance.work()
         if overrides.get("model") == "linear":
             evaluations = int(instance.get("n_steps")[0])
         return positions, evaluations

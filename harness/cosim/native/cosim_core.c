@@ -4,91 +4,32 @@
  * loaded, of FMI 2.0 or 3.0 per unit) and keeps everything else: initialization, iteration, step
  * doubling, rollback, messages. Semantics are those of harness/cosim/master.py, which the tests
  * compare against. */
-#include <stdbool.h>
-#include <stddef.h>
 #include <stdint.h>
 
-/* FMI 2.0's shapes */
-typedef int (*SetReal2)(void *, const unsigned *, size_t, const double *);
-typedef int (*GetReal2)(void *, const unsigned *, size_t, double *);
-typedef int (*GetInteger2)(void *, const unsigned *, size_t, void *);
-typedef int (*DoStep2)(void *, double, double, int);
-typedef int (*SetDerivatives2)(void *, const unsigned *, size_t, const int *, const double *);
-typedef int (*GetDerivatives2)(void *, const unsigned *, size_t, const int *, double *);
-/* FMI 3.0's: every get and set also takes the number of values; no input derivatives */
-typedef int (*SetFloat3)(void *, const unsigned *, size_t, const double *, size_t);
-typedef int (*GetFloat3)(void *, const unsigned *, size_t, double *, size_t);
-typedef int (*GetInteger3)(void *, const unsigned *, size_t, void *, size_t);
-typedef int (*DoStep3)(void *, double, double, bool, bool *, bool *, bool *, double *);
-typedef int (*GetDerivatives3)(void *, const unsigned *, size_t, const int *, double *, size_t);
-
-enum { INTEGER_32 = 0, INTEGER_64 = 1, UNSIGNED_64 = 2 };
+#include "fmi_calls.h"
 
 typedef struct {
-    void *component;
-    void *set_real, *get_real, *get_integer, *do_step, *set_derivatives, *get_derivatives;
+    FmiCalls calls;
     int n_out, n_in, n_int;
     const unsigned *out_vrs, *in_vrs, *int_vrs;
     const int *orders_out, *orders_in;
     double *y_now, *dy_now, *y_next, *dy_next, *u, *du;
-    void *ints;              /* n_int integers of integer_kind */
+    void *ints;              /* n_int integers of calls.integer_kind */
     const int *source_unit;  /* per input: index of the unit that feeds it */
     const int *source_index; /* per input: index of that unit's output */
     int energy_index;        /* output holding the unit's energy, -1 for none */
-    int fmi3;                /* the function pointers are FMI 3.0's */
-    int integer_kind;        /* INTEGER_32, INTEGER_64 or UNSIGNED_64 */
-    double *last_time;       /* FMI 3.0: where fmi3DoStep's lastSuccessfulTime goes */
 } CoreUnit;
-
-static int set_inputs(CoreUnit *unit)
-{
-    return unit->fmi3 ? ((SetFloat3)unit->set_real)(unit->component, unit->in_vrs, (size_t)unit->n_in, unit->u,
-                                                   (size_t)unit->n_in)
-                      : ((SetReal2)unit->set_real)(unit->component, unit->in_vrs, (size_t)unit->n_in, unit->u);
-}
-
-static int get_outputs(CoreUnit *unit)
-{
-    return unit->fmi3 ? ((GetFloat3)unit->get_real)(unit->component, unit->out_vrs, (size_t)unit->n_out,
-                                                   unit->y_next, (size_t)unit->n_out)
-                      : ((GetReal2)unit->get_real)(unit->component, unit->out_vrs, (size_t)unit->n_out, unit->y_next);
-}
-
-static int get_output_derivatives(CoreUnit *unit)
-{
-    const size_t n = (size_t)unit->n_out;
-    return unit->fmi3 ? ((GetDerivatives3)unit->get_derivatives)(unit->component, unit->out_vrs, n, unit->orders_out,
-                                                                unit->dy_next, n)
-                      : ((GetDerivatives2)unit->get_derivatives)(unit->component, unit->out_vrs, n, unit->orders_out,
-                                                                unit->dy_next);
-}
-
-static int do_step(CoreUnit *unit, double t, double H)
-{
-    if (unit->fmi3) {
-        bool event = false, terminate = false, early = false;
-        return ((DoStep3)unit->do_step)(unit->component, t, H, true, &event, &terminate, &early, unit->last_time);
-    }
-    return ((DoStep2)unit->do_step)(unit->component, t, H, 1);
-}
-
-static int get_integers(CoreUnit *unit)
-{
-    const size_t n = (size_t)unit->n_int;
-    return unit->fmi3 ? ((GetInteger3)unit->get_integer)(unit->component, unit->int_vrs, n, unit->ints, n)
-                      : ((GetInteger2)unit->get_integer)(unit->component, unit->int_vrs, n, unit->ints);
-}
 
 static double integer_value(const CoreUnit *unit, int i)
 {
-    switch (unit->integer_kind) {
+    switch (unit->calls.integer_kind) {
     case INTEGER_64: return (double)((const int64_t *)unit->ints)[i];
     case UNSIGNED_64: return (double)((const uint64_t *)unit->ints)[i];
     default: return ((const int *)unit->ints)[i];
     }
 }
 
-enum { CORE_OK = 0, CORE_DISCARD = 2, CORE_ERROR = 3 };
+enum { CORE_OK = FMI_OK, CORE_DISCARD = FMI_DISCARD, CORE_ERROR = FMI_ERROR };
 
 static int feed(CoreUnit *units, int k, double H, int linear, const int *stepped)
 {
@@ -106,20 +47,19 @@ static int feed(CoreUnit *units, int k, double H, int linear, const int *stepped
             if (linear) unit->du[i] = source->dy_now[o];
         }
     }
-    status = set_inputs(unit);
+    status = fmi_set_floats(&unit->calls, unit->in_vrs, unit->n_in, unit->u);
     if (status >= CORE_ERROR || !linear) return status;
     /* linear only where every receiver is FMI 2.0 (the master refuses it otherwise) */
-    return ((SetDerivatives2)unit->set_derivatives)(unit->component, unit->in_vrs, (size_t)unit->n_in,
-                                                    unit->orders_in, unit->du);
+    return fmi_set_input_derivatives(&unit->calls, unit->in_vrs, unit->n_in, unit->orders_in, unit->du);
 }
 
 static int step_and_read(CoreUnit *unit, double t, double H, int linear)
 {
-    int status = do_step(unit, t, H);
+    int status = fmi_do_step(&unit->calls, t, H);
     if (status != CORE_OK && status != 1) return status;
-    status = get_outputs(unit);
+    status = fmi_get_floats(&unit->calls, unit->out_vrs, unit->n_out, unit->y_next);
     if (status >= CORE_ERROR || !linear) return status;
-    return get_output_derivatives(unit);
+    return fmi_get_output_derivatives(&unit->calls, unit->out_vrs, unit->n_out, unit->orders_out, unit->dy_next);
 }
 
 static int record(CoreUnit *units, int n_units, double t, double *row, double *energy, int *culprit)
@@ -133,7 +73,7 @@ static int record(CoreUnit *units, int n_units, double t, double *row, double *e
     }
     for (k = 0; k < n_units; k++) {
         if (!units[k].n_int) continue;
-        if (get_integers(&units[k]) >= CORE_ERROR) {
+        if (fmi_get_integers(&units[k].calls, units[k].int_vrs, units[k].n_int, units[k].ints) >= CORE_ERROR) {
             *culprit = k;
             return CORE_ERROR;
         }
