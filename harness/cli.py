@@ -280,7 +280,7 @@ def command_plan(args: argparse.Namespace) -> int:
         if args.pixels is not None:
             system.accuracy = {"pixels": args.pixels}
             tolerance = system.tolerance()
-        plans = plan_scene(system, tolerance, args.duration, args.scheduler, args.workers)
+        plans = plan_scene(system, tolerance, args.duration, args.scheduler, args.workers, exact=args.exact)
     tolerance = plans[0].tolerance
     duration = args.duration or system.stop
     print(f"{system.name}: {duration:g} s, tolerance {tolerance:.3g} m at every frame "
@@ -292,10 +292,26 @@ def command_plan(args: argparse.Namespace) -> int:
         if math.isfinite(p.communication_step):
             choice += f", H = {p.communication_step:g}"
         default_ok = p.default_error <= tolerance
-        verdict = (f"{p.default_cost / p.cost:.1f}x cheaper than the default" if default_ok
+        verdict = ("plausible, not pointwise (below)" if p.plan == "plausible" else
+                   f"{p.default_cost / p.cost:.1f}x cheaper than the default" if default_ok
                    else "the default misses the tolerance")
         print(f"{p.object:14s} {choice:28s} {p.predicted_error:10.2e} {p.verified_error:10.2e} {p.cost:7d} | "
               f"{p.default_error:20.2e} {p.default_cost:7d}  {verdict}")
+    for p in plans:
+        if not math.isfinite(p.lyapunov):
+            continue
+        parting = (f"{p.object}: Lyapunov exponent {p.lyapunov:.3g}/s over the scene, predictability horizon "
+                   f"{p.horizon:.3g} s")
+        if p.plan == "plausible":
+            print(f"{parting} < {duration:g} s: a plausible plan (pointwise accuracy is not to be had at a sensible "
+                  f"cost; --exact plans it anyway): energy error {p.energy_error:.2g} J within the "
+                  f"{p.energy_limit:.2g} J of one pixel of height, stable, parting like the reference")
+        elif p.horizon < duration:
+            print(f"{parting} < {duration:g} s, but pointwise" + (" as asked (--exact)" if args.exact else
+                                                                 " (no plausible plan: its energy is not conserved "
+                                                                 "or no setting keeps it within a pixel)"))
+        else:
+            print(f"{parting}: pointwise")
     total, default_total = sum(p.cost for p in plans), sum(p.default_cost for p in plans)
     print(f"total cost {total} evaluations against the default's {default_total} ({default_total / total:.2f}x)")
     if out:
@@ -366,6 +382,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--tolerance", type=positive_number, help="position tolerance [m] (default: the scene's accuracy)")
     p.add_argument("--pixels", type=positive_number, help="tolerance in pixels, through the scene camera's scale")
     p.add_argument("--duration", type=positive_number, help="scene duration [s] (default: the scene's stop)")
+    p.add_argument("--exact", action="store_true", help="pointwise plans also for objects whose motion parts "
+                   "faster than the scene lasts (default: a plausible plan for those)")
     p.add_argument("--out", help="CSV file for the plan")
     p.add_argument("--workers", type=count(256), help="parallel worker processes (default: all local cores)")
     p.add_argument("--scheduler", metavar="ADDRESS", help="plan on a Dask cluster ('local' or HOST:PORT)")

@@ -48,6 +48,21 @@ def test_the_tables_have_their_data(demo):
         assert len((out / name).read_text().splitlines()) > 4, name
 
 
+def test_the_plan_is_pointwise_where_the_motion_is_regular(demo):
+    """The thesis scene's plan: the simple and spring pendulums part slowly (horizons far beyond the
+    20 s) and are planned pointwise; the double pendulum parts within the scene and gets a plausible
+    plan whose energy error is within its pixel's worth."""
+    import csv
+    with open(demo[0] / "plan.csv", newline="") as table:
+        rows = {row["object"]: row for row in csv.DictReader(table)}
+    for name in ("simple", "spring_D34", "spring_D104"):
+        assert rows[name]["plan"] == "pointwise" and float(rows[name]["horizon"]) > 40, rows[name]
+        assert float(rows[name]["verified_error"]) <= 0.004
+    double = rows["double"]
+    assert double["plan"] == "plausible" and float(double["horizon"]) < 20
+    assert float(double["energy_error"]) <= float(double["energy_limit"])
+
+
 def test_the_plan_covers_the_duration_asked_for(fmu_paths, tmp_path):
     """demo --duration plans the thesis scene over that time: the default's cost doubles with it."""
     import csv

@@ -1,4 +1,5 @@
-"""Memory safety of the FMUs: the behaviour, robustness, numerics, master, FMI 3.0 and Jacobian tests again against an
+"""Memory safety of the FMUs: the behaviour, robustness, numerics, master, FMI 3.0, Jacobian, symmetric-method and
+recorder tests again against an
 AddressSanitizer + UndefinedBehaviorSanitizer build (CMake option FMU_SANITIZE), and the C drivers
 under valgrind memcheck. Any report fails the test."""
 from __future__ import annotations
@@ -16,7 +17,8 @@ from harness.fmi.fmus import PROJECT_ROOT, build_dir
 
 SANITIZED_TESTS = ["tests/test_fmi_behaviour.py", "tests/test_robustness.py", "tests/test_convergence.py",
                    "tests/test_master.py", "tests/test_concurrency.py", "tests/test_physics.py",
-                   "tests/test_fmi3.py", "tests/test_jacobian.py"]  # the FMI 3.0 layer and the Jacobian
+                   "tests/test_fmi3.py", "tests/test_jacobian.py",  # the FMI 3.0 layer and the Jacobian
+                   "tests/test_symmetric_methods.py", "tests/test_recorder.py"]  # Newton, Verlet, the native loop
 
 
 def compiler_file(name: str) -> str:

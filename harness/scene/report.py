@@ -99,14 +99,20 @@ def plan_section(out: Path, duration: float | None = None) -> Section:
     tolerance = plans[0].tolerance
     rows = [[p.object, "linear, closed form" if p.model == "linear" else p.method, f"{p.h:.4g}",
              f"{p.predicted_error:.2e}", f"{p.verified_error:.2e}", p.cost, f"{p.default_error:.2e}", p.default_cost,
-             "meets" if p.default_error <= tolerance else "misses"] for p in plans]
+             "meets" if p.default_error <= tolerance else "misses",
+             f"{p.horizon:.3g}" if math.isfinite(p.horizon) else "", p.plan] for p in plans]
+    pointwise = [p for p in plans if p.plan == "pointwise"]
+    plausible = [p for p in plans if p.plan == "plausible"]
     ok = all(p.verified_error <= tolerance and (p.default_error > tolerance or p.cost <= p.default_cost)
-             for p in plans)
+             for p in pointwise) and all(p.energy_error <= p.energy_limit for p in plausible)
     total, default = sum(p.cost for p in plans), sum(p.default_cost for p in plans)
-    verdict = (f"every object within {system.accuracy.get('pixels', '')} pixel ({tolerance * 1000:.1f} mm) for "
-               f"{duration or system.stop:g} s; {total} evaluations against the default's {default}")
+    verdict = (f"{len(pointwise)} objects within {system.accuracy.get('pixels', '')} pixel ({tolerance * 1000:.1f} mm) "
+               f"at every frame for {duration or system.stop:g} s"
+               + "".join(f", {p.object} plausible (horizon {p.horizon:.3g} s; energy within one pixel of height)"
+                         for p in plausible)
+               + f"; {total} evaluations against the default's {default}")
     body = _table(["object", "plan", "h [s]", "predicted [m]", "verified [m]", "cost", "default error [m]",
-                   "default cost", "default"], rows)
+                   "default cost", "default", "horizon [s]", "kind"], rows)
     return Section(f"Plan for the thesis scene at {tolerance * 1000:.1f} mm", verdict, ok, body)
 
 

@@ -62,7 +62,11 @@ def work_precision_chart(points: list[Point], out: Path) -> list[Path]:
                           else "seconds (median of repeats)")
             ax.set_ylabel("largest position error of the traced point [m]")
             ax.set_title(f"{name}: error against {'evaluations' if cost == 'evaluations' else 'time'}")
-    axes[0][-1].legend(fontsize=7, ncol=2, loc="lower left")
+    labelled = {}  # every method once, also one only some objects have (stormer_verlet)
+    for ax in axes[0]:
+        for handle, label in zip(*ax.get_legend_handles_labels()):
+            labelled.setdefault(label, handle)
+    axes[0][-1].legend(list(labelled.values()), list(labelled), fontsize=7, ncol=2, loc="lower left")
     figure.suptitle("Work-precision, 10 s from the default start, communication step 0.01 s")
     figure.tight_layout()
     return save(figure, out, "work-precision")

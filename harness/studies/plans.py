@@ -28,6 +28,11 @@ class ObjectPlan:
     how: str  # how the error was predicted
     tolerance: float
     communication_step: float = math.nan  # coupled objects only
+    plan: str = "pointwise"  # or "plausible" (harness.studies.chaos), for a motion that parts too fast
+    lyapunov: float = math.nan  # 1/s: the largest finite-time Lyapunov exponent over the scene
+    horizon: float = math.nan  # s: the predictability horizon for the tolerance
+    energy_error: float = math.nan  # J: a plausible plan's largest energy error over the scene
+    energy_limit: float = math.nan  # J: what one pixel of the centre of mass's height shows
 
 
 def largest_distance(a: np.ndarray, b: np.ndarray) -> float:

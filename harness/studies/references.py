@@ -46,7 +46,8 @@ class ObjectRunner:
         self.switchable = "model" in self.instance.variables  # an object with a linear model
         self.grid = communication_grid(0.0, duration, frame)
         self.columns = columns
-        self.recorder = Recorder(self.instance, self.grid, [c for point in columns for c in point])
+        self.recorder = Recorder(self.instance, self.grid, [c for point in columns for c in point] + ["E"])
+        self.energies = np.empty(0)  # E at the frames of the last run (inf after a discard)
 
     @property
     def default_h(self) -> float:
@@ -72,6 +73,8 @@ class ObjectRunner:
         for k, point in enumerate(self.columns):
             for axis, name in enumerate(point):
                 positions[:rows, k, axis] = result[name][:rows]
+        self.energies = np.full(len(self.grid), np.inf)
+        self.energies[:rows] = result["E"][:rows]
         evaluations = instance.work()
         if overrides.get("model") == "linear":
             evaluations = int(instance.get("n_steps")[0])
