@@ -76,3 +76,24 @@ def test_many_rows_cross_many_native_calls(fmu_paths):
         result = recorder.run()
     assert result.values.shape == (50001, 3)
     assert np.array_equal(result.values[:, 2], np.arange(50001))  # one internal step per row, none repeated
+
+
+def test_an_interrupt_keeps_every_row_the_fmu_stepped_to(fmu_paths):
+    """Ctrl-C during a long native call: the call finishes its rows (calls grow from one row to about
+    0.1 s), and every row it wrote is kept: the last row is where the FMU is."""
+    import signal
+    with FmuInstance(fmu_path("SimplePendulum", "2.0")) as instance:
+        recorder = Recorder(instance, communication_grid(0.0, 100.0, 0.01), ["phi", "n_steps"])
+        instance.initialize(0.0, solver="rk4", h=2e-6)  # about 5,000 substeps per row
+        previous = signal.signal(signal.SIGINT, signal.default_int_handler)
+        signal.setitimer(signal.ITIMER_REAL, 0.3)
+        alarm = signal.signal(signal.SIGALRM, lambda *_: signal.raise_signal(signal.SIGINT))
+        try:
+            result = recorder.run(keep_interrupted=True)
+        finally:
+            signal.setitimer(signal.ITIMER_REAL, 0)
+            signal.signal(signal.SIGALRM, alarm)
+            signal.signal(signal.SIGINT, previous)
+        assert result.interrupted and 2 <= len(result.values) < 10001
+        assert result.values[-1, 0] == pytest.approx(instance.last_successful_time(), abs=1e-12)
+        assert result.values[-1, 2] == instance.get("n_steps")[0]

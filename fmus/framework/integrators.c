@@ -287,6 +287,7 @@ static int implicit_step(RightHandSide *f, const Evaluator *e, int mode, const B
         for (i = 0; i < N_INPUTS; i++) u[i] = e->u0[i];
     f->jacobian(f->context, t, x, mode == FORCES_NONE ? NULL : u, J);
     f->jacobians++;
+    f->evaluations++; /* the Jacobian's columns need f(t, x) itself once */
     if (first_non_finite(J, N_STATES * N_STATES) >= 0) return 0;
     for (i = 0; i < s; i++)
         for (p = 0; p < N_STATES; p++)
@@ -317,7 +318,7 @@ static int implicit_step(RightHandSide *f, const Evaluator *e, int mode, const B
             for (p = 0; p < N_STATES; p++) {
                 const double scaled = fabs(r[i * N_STATES + p]) / (1.0 + fabs(x[p]));
                 Z[i][p] += r[i * N_STATES + p];
-                if (!(scaled <= norm)) norm = scaled; /* NaN sticks */
+                if (!(scaled <= norm) && !isnan(norm)) norm = scaled; /* a NaN stays */
             }
         if (norm <= NEWTON_TOLERANCE) break;
         if (!(norm < previous)) { /* no longer shrinking: rounding reached, or diverging */
@@ -443,7 +444,7 @@ double evaluations_needed(int solver, int history, double substeps)
     const AdamsBashforth *ab = adams_bashforth_of(solver);
     double starts;
     if (solver == SOLVER_STORMER_VERLET) return substeps + ceil(substeps / CHECK_BLOCK); /* one per block start */
-    if (tab && tab->implicit) return substeps * (tab->stages * NEWTON_MAX_ITERATIONS + N_STATES);
+    if (tab && tab->implicit) return substeps * (tab->stages * NEWTON_MAX_ITERATIONS + 1 + N_STATES);
     if (tab || !ab) return substeps * (tab ? tab->stages : 1);
     /* substep i starts with a Runge-Kutta step while history + i + 1 < steps (adams_bashforth_loop) */
     starts = (double)(ab->steps - 1 - history);

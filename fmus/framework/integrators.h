@@ -96,7 +96,7 @@ INTERNAL const char *solver_name(int solver);
 /* Right-hand-side evaluations a fixed-step solver makes in `substeps` steps: its stages per step,
  * or for Adams-Bashforth one per step plus its Runge-Kutta start where `history` (the points it
  * keeps) is too short; for the implicit methods the most their iterations can take, each Jacobian
- * counted as one evaluation per state. */
+ * counted as one evaluation (f at the step's start) and one per state (its columns). */
 INTERNAL double evaluations_needed(int solver, int history, double substeps);
 
 #endif

@@ -113,8 +113,8 @@ class Recorder:
     contract (rows(first, end) below) and give the same table. This is the loop `simulate`, the
     sweeps and the benchmarks use."""
 
-    FIRST_CHUNK = 256  # rows of the first native call; later calls aim at CHUNK_SECONDS each
-    CHUNK_SECONDS = 0.1  # between two calls an interrupt is seen and progress is shown
+    CHUNK_SECONDS = 0.1  # native calls grow from one row to about this long: between two calls an interrupt
+    # is seen (the rows the interrupted call wrote are kept) and progress is shown
 
     def __init__(self, instance: FmuInstance, grid: np.ndarray, outputs: list[str], native: bool = True):
         self.instance = instance
@@ -142,6 +142,7 @@ class Recorder:
         record_rows, grid, unit_p = library.record_rows, self.grid.ctypes.data, ctypes.byref(unit)
         done, where = ctypes.c_long(), ctypes.c_int()
         self._keep = unit
+        self._rows_written = done  # set by each call before it returns: the rows kept after an interrupt
 
         def rows(first: int, end: int) -> tuple[int, int, int]:
             status = record_rows(unit_p, grid, first, end, ctypes.byref(done), ctypes.byref(where))
@@ -162,10 +163,11 @@ class Recorder:
                     status = do_step(component, times[i - 1], times[i] - times[i - 1], 1)
                     if status == DISCARD or status >= ERROR:
                         return status, i, AT_STEP
-                if get_real(component, real_vrs, n_real, real_rows[i]) >= ERROR:
-                    return ERROR, i, AT_FLOATS
-                if n_int and read_integers(int_rows[i]) >= ERROR:
-                    return ERROR, i, AT_INTEGERS
+                status = get_real(component, real_vrs, n_real, real_rows[i])
+                if status >= ERROR:
+                    return status, i, AT_FLOATS
+                if n_int and (status := read_integers(int_rows[i])) >= ERROR:
+                    return status, i, AT_INTEGERS
             return 0, end, AT_STEP
         return rows
 
@@ -174,7 +176,9 @@ class Recorder:
         discarded_at = None
         total = len(times)
         interrupted = False
-        done, chunk = 0, self.FIRST_CHUNK if self.native else 1  # Python: a row per call, so none is lost
+        done, chunk = 0, 1  # Python: a row per call, so none is lost
+        if self.native:
+            self._rows_written.value = 0  # not the last run's count
         try:
             while done < total:
                 started = time.perf_counter()
@@ -192,12 +196,14 @@ class Recorder:
                     self._raise(status, done, where)
                 if progress is not None and done < total and (self.native or not done & 63):
                     progress(times[done - 1], (done - 1) / (total - 1))
-                if self.native:  # calls of about CHUNK_SECONDS each
+                if self.native:  # calls of about CHUNK_SECONDS each, growing at most fourfold
                     elapsed = time.perf_counter() - started
                     chunk = int(min(max(chunk * self.CHUNK_SECONDS / max(elapsed, 1e-9), 1), 4 * chunk, 1 << 24))
         except KeyboardInterrupt:  # the rows before the interrupted step are kept, if the caller wants them
             if not keep_interrupted:
                 raise
+            if self.native:  # the call the interrupt came in wrote rows before it returned
+                done = max(done, self._rows_written.value)
             interrupted, discarded_at = True, None
         table = np.empty((done, len(self.columns)))
         table[:, 0] = self.grid[:done]
@@ -211,10 +217,11 @@ class Recorder:
     def _read_row(self, row: int) -> tuple[int, int]:
         """The outputs of the instance as it is now into `row`: (status, the call that failed)."""
         raw = self.instance.raw
-        if raw.get_real(raw.component, self.real_vrs, self.n_real, self.reals[row].ctypes.data) >= ERROR:
-            return ERROR, AT_FLOATS
-        if self.n_int and self.integer_reader.read(self.integers[row].ctypes.data) >= ERROR:
-            return ERROR, AT_INTEGERS
+        status = raw.get_real(raw.component, self.real_vrs, self.n_real, self.reals[row].ctypes.data)
+        if status >= ERROR:
+            return status, AT_FLOATS
+        if self.n_int and (status := self.integer_reader.read(self.integers[row].ctypes.data)) >= ERROR:
+            return status, AT_INTEGERS
         return 0, AT_STEP
 
     def _raise(self, status: int, row: int, where: int):

@@ -89,11 +89,17 @@ def stability_charts(limits, cases, tables: dict, out: Path) -> list[Path]:
         mine = [(limit, by_key[(limit.object, round(limit.damping, 12), limit.release)]) for limit in limits
                 if limit.method == method]
         points = [(limit, case, measured_point(limit, case)) for limit, case in mine]
-        reach = max(abs(z) for _, case, z in points if case.linear)
+        table = tables[method]
+        # The window: the measured linear limits. Not those of an A-stable method (one step per 100
+        # periods, far out on the half-plane it fills), nor Stormer-Verlet's overdamped ones (its
+        # region is drawn for an oscillator's pair z, conj(z), which a real pair is not).
+        shown = [z for limit, case, z in points if case.linear and math.isfinite(limit.theory_limit)
+                 and not (table.get("partitioned") and z.imag == 0)]
+        reach = max((abs(z) for z in shown), default=4.0)
         x = np.linspace(-1.35 * reach, 0.45 * reach, 320)
         y = np.linspace(-1.25 * reach, 1.25 * reach, 320)
         grid = x[None, :] + 1j * y[:, None]
-        g = growth_on_grid(tables[method], grid)
+        g = growth_on_grid(table, grid)
         ax.contourf(x, y, (g <= 1.0).astype(float), levels=[0.5, 1.5], colors=["#cfe3f7"])
         ax.contour(x, y, g, levels=[1.0], colors=["#2b6cb0"], linewidths=1.0)
         ax.axhline(0, color="grey", linewidth=0.5)
@@ -106,7 +112,10 @@ def stability_charts(limits, cases, tables: dict, out: Path) -> list[Path]:
                     ax.plot(t.real, t.imag, markers[case.object], markerfacecolor="none", color="black", markersize=9)
             else:
                 ax.plot(z.real, z.imag, "x", color="#805ad5", markersize=8)
-        ax.set_title(method)
+        ax.set_title(method if shown else f"{method} (A-stable: measured stable up to one step per window)",
+                     fontsize=10 if shown else 8)
+        ax.set_xlim(x[0], x[-1])
+        ax.set_ylim(y[0], y[-1])
         ax.set_aspect("equal")
         ax.set_xlabel("Re h·λ")
         ax.set_ylabel("Im h·λ")
