@@ -225,18 +225,17 @@ def command_chart(args: argparse.Namespace) -> int:
     elif args.kind == "stability":
         from harness.studies.charts import stability_charts
         from harness.fmi.fmus import build_dir
-        from harness.studies.stability import atlas, cases, method_tables, write_csv
+        from harness.studies.stability import atlas, cases, method_tables, sharp_deviations, write_csv
         fmu_dir = build_dir() / "fmus"
         limits = atlas(fmu_dir, full=args.full, scheduler=args.scheduler, workers=args.workers, quick=args.quick,
                        objects=objects)
         write_csv(limits, out / "stability.csv")
         written = [out / "stability.csv", *stability_charts(limits, cases(fmu_dir, args.full, args.quick, objects),
                                                             method_tables(), out)]
-        linear = [x for x in limits if math.isfinite(x.theory_limit)]  # NaN: nonlinear; inf: A-stable
-        worst = max(linear, key=lambda x: abs(x.measured_limit / x.theory_limit - 1))
-        print(f"{len(limits)} limits measured; largest deviation from the prediction in the linear cases: "
-              f"{worst.measured_limit / worst.theory_limit - 1:+.2%} ({worst.object}, {worst.method}, "
-              f"d = {worst.damping:.3g}/s)")
+        worst, deviation = max(sharp_deviations(limits, cases(fmu_dir, args.full, args.quick, objects)),
+                               key=lambda pair: abs(pair[1]))
+        print(f"{len(limits)} limits measured; largest deviation from a sharp prediction (linear cases): "
+              f"{deviation:+.2%} ({worst.object}, {worst.method}, d = {worst.damping:.3g}/s)")
     elif args.kind == "long-run":
         from harness.fmi.fmus import build_dir
         from harness.studies.charts import long_run_chart

@@ -287,6 +287,23 @@ def atlas(fmu_dir: Path, methods=FIXED_STEP, full: bool = False, scheduler: str 
     return run_sweep(measure, jobs, scheduler, workers)
 
 
+def sharp_deviations(limits: list[Limit], all_cases: list[Case]) -> list[tuple[Limit, float]]:
+    """(limit, measured / predicted - 1) where the prediction is sharp: the linear cases, but not an
+    A-stable method's (unbounded) nor Stormer-Verlet's on an overdamped case, where the mode that
+    grows first is the step's parasitic one, which a release from rest barely excites, so that the
+    worst-case prediction is only a lower bound."""
+    by_key = {(c.object, round(c.damping, 12), c.release): c for c in all_cases}
+    sharp = []
+    for limit in limits:
+        case = by_key[(limit.object, round(limit.damping, 12), limit.release)]
+        if not math.isfinite(limit.theory_limit):
+            continue
+        if limit.method == "stormer_verlet" and all(lam.imag == 0 for lam in case.eigenvalues):
+            continue
+        sharp.append((limit, limit.measured_limit / limit.theory_limit - 1))
+    return sharp
+
+
 def write_csv(limits: list[Limit], path: Path) -> None:
     write_records(limits, path, Limit.columns())
 
