@@ -45,7 +45,8 @@ class Case:
 def cases() -> list[Case]:
     result = []
     for model in DURATION:
-        result += [Case(model, solver, {"solver": solver}) for solver in SOLVERS]
+        # the methods the hand-written FMUs had (the symmetric ones came later)
+        result += [Case(model, solver, {"solver": solver}) for solver in SOLVERS[:SOLVERS.index("ab6") + 1]]
         if model == "SimplePendulum":
             result.append(Case(model, "linear", {"model": "linear"}))
     return result
