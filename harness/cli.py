@@ -241,6 +241,9 @@ def command_chart(args: argparse.Namespace) -> int:
         from harness.studies.charts import long_run_chart
         from harness.studies.long_run import CASES, PERIODS, long_run, tasks_for, write_csv
         cases = [case for case in CASES if not args.objects or case.object in objects]
+        if not cases:
+            raise HarnessError(f"--objects: long-run has cases for {', '.join(c.object for c in CASES)}, not for "
+                               f"{', '.join(objects)}")
         series = long_run(tasks_for(build_dir() / "fmus", cases, PERIODS // 10 if args.quick else PERIODS),
                           args.scheduler, args.workers)
         write_csv(series, out / "long-run.csv")

@@ -51,6 +51,14 @@ def test_every_method_runs_at_about_the_same_cost(series):
         assert abs(s.cost_per_period / COST_PER_PERIOD - 1) < allowed, (name, method, s.cost_per_period)
 
 
+def test_an_object_without_a_long_run_case_is_a_one_line_error(fmu_paths, tmp_path):
+    result = subprocess.run([sys.executable, "-m", "harness", "chart", "long-run", "--objects", "CartPendulum",
+                             "--out", str(tmp_path)], capture_output=True, text=True, cwd=PROJECT_ROOT)
+    assert result.returncode == 2 and result.stderr.count("\n") == 1, result.stderr
+    assert "long-run has cases for SimplePendulum, SpringPendulum, DoublePendulum, not for CartPendulum" in result.stderr
+    assert not (tmp_path / "long-run.csv").exists()
+
+
 def test_chart_long_run_writes_its_chart_and_csv(fmu_paths, tmp_path):
     result = subprocess.run([sys.executable, "-m", "harness", "chart", "long-run", "--quick", "--objects",
                              "SimplePendulum", "--out", str(tmp_path), "--workers", "1"],

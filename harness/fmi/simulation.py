@@ -151,11 +151,7 @@ class Recorder:
 
     def _python_rows(self):
         raw = self.instance.raw
-        component, get_real, read_integers, do_step = raw.component, raw.get_real, self.integer_reader.read, raw.do_step
-        real_vrs, n_real, n_int, times = self.real_vrs, self.n_real, self.n_int, self.times
-        # row addresses, computed once
-        real_rows = (self.reals.ctypes.data + self.reals.strides[0] * np.arange(len(times))).tolist()
-        int_rows = (self.integers.ctypes.data + self.integers.strides[0] * np.arange(len(times))).tolist()
+        component, do_step, read_row, times = raw.component, raw.do_step, self._read_row, self.times
 
         def rows(first: int, end: int) -> tuple[int, int, int]:
             for i in range(first, end):
@@ -163,11 +159,9 @@ class Recorder:
                     status = do_step(component, times[i - 1], times[i] - times[i - 1], 1)
                     if status == DISCARD or status >= ERROR:
                         return status, i, AT_STEP
-                status = get_real(component, real_vrs, n_real, real_rows[i])
+                status, where = read_row(i)
                 if status >= ERROR:
-                    return status, i, AT_FLOATS
-                if n_int and (status := read_integers(int_rows[i])) >= ERROR:
-                    return status, i, AT_INTEGERS
+                    return status, i, where
             return 0, end, AT_STEP
         return rows
 

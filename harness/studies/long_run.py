@@ -21,6 +21,7 @@ import numpy as np
 
 from harness.fmi.fmu_instance import FmuInstance, accepted_methods
 from harness.fmi.simulation import Recorder, communication_grid
+from harness.objects.thesis.reference import slope
 from harness.studies.records import columns_of, read_records, write_records
 from harness.studies.sweep import run_sweep
 
@@ -163,7 +164,7 @@ def fitted_slope(times: np.ndarray, errors: np.ndarray, start: float = FIT_FROM)
     keep = values > 0
     if keep.sum() < 3:
         return 0.0  # exactly conserved: no growth
-    return float(np.polyfit(np.log(samples[keep]), np.log(values[keep]), 1)[0])
+    return slope(samples[keep], values[keep])
 
 
 def compute(task: Task) -> Series:

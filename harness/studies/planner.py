@@ -207,10 +207,18 @@ def plan_object(job: tuple[Component, float, float, float, list, dict, float, bo
             twin.close()
 
 
+def _default_run(runner: ObjectRunner, reference: np.ndarray) -> tuple[tuple[str, float], float, int]:
+    """The default (rk4 at the object's own default step, 0.008 s for the thesis pendulums), its error
+    against the reference and its cost."""
+    default = (DEFAULT[0], runner.default_h)
+    positions, cost = runner.run(runner.settings(*default))
+    return default, largest_distance(positions, reference), cost
+
+
 def _with_default(plan: ObjectPlan, runner: ObjectRunner, reference: np.ndarray) -> ObjectPlan:
-    """The plan with the default's error and cost filled in (rk4 at the object's own default h)."""
-    positions, cost = runner.run(runner.settings(DEFAULT[0], runner.default_h))
-    return replace(plan, default_error=largest_distance(positions, reference), default_cost=cost)
+    """The plan with the default's error and cost filled in."""
+    _, error, cost = _default_run(runner, reference)
+    return replace(plan, default_error=error, default_cost=cost)
 
 
 def _pointwise_plan(component: Component, kind: str, runner: ObjectRunner, frame: float, tolerance: float,
@@ -232,10 +240,7 @@ def _pointwise_plan(component: Component, kind: str, runner: ObjectRunner, frame
             if prediction is not None and prediction[0] <= SAFETY * tolerance:
                 candidates.append(Candidate("nonlinear", method, h, *prediction))
                 break
-    # The default: rk4 at the object's own default step (0.008 s for the thesis pendulums).
-    default = (DEFAULT[0], float(runner.instance.variables["h"].start))
-    default_positions, default_cost = runner.run(runner.settings(*default))
-    default_error = largest_distance(default_positions, reference)
+    default, default_error, default_cost = _default_run(runner, reference)
     if stable(*default):
         prediction = _predict(runner, *default, tolerance)
         if prediction is not None and prediction[0] <= SAFETY * tolerance:
