@@ -1,15 +1,22 @@
 /* The coupled-pendulums scene (spring, left, right; Jacobi, inputs held) as a plain C loop of fmi2
  * calls: the floor any master in any language can reach with these FMUs.
  *
- *   coupled_native PENDULUM.so PENDULUM_GUID SPRING.so SPRING_GUID STEPS H VR...
+ *   coupled_native PENDULUM.so PENDULUM_GUID SPRING.so SPRING_GUID STEPS H VR... [record RECORDED...]
  *
  * VR: the value references (from the model descriptions) of, in this order:
  *   pendulum x y v_x v_y F_x F_y phi anchor_x h, spring a_x a_y a_vx a_vy b_x b_y b_vx b_vy Fa_x Fa_y Fb_x Fb_y k l0
+ * With `record`, the loop makes the calls a master makes that records every output: per unit and
+ * step one get of all its float outputs and one of its integer outputs, each written into a row of
+ * a preallocated table. RECORDED is, in this order: the count and value references of the
+ * pendulum's float outputs, the positions of x y v_x v_y among them, the count and value
+ * references of its integer outputs, and the count and value references of the spring's float
+ * outputs with the positions of Fa_x Fa_y Fb_x Fb_y among them.
  * Prints the seconds per macro step and the left bob's final x. */
 #define _POSIX_C_SOURCE 200809L
 #include <dlfcn.h>
 #include <stdio.h>
 #include <stdlib.h>
+#include <string.h>
 #include <time.h>
 
 #include "fmi2_api.h"
@@ -49,6 +56,37 @@ static Unit open_unit(const char *path, const char *guid, const char *name)
     return u;
 }
 
+#define MAX_RECORDED 64
+
+typedef struct {
+    int n_real, n_int, n_spring;
+    fmi2ValueReference real[MAX_RECORDED], ints[MAX_RECORDED], spring[MAX_RECORDED];
+    int bob[4], force[4];
+} Recorded;
+
+static int read_list(char **argv, int at, int argc, fmi2ValueReference *vrs, int *n)
+{
+    int i;
+    if (at >= argc || (*n = atoi(argv[at])) < 0 || *n > MAX_RECORDED || at + 1 + *n > argc) {
+        fprintf(stderr, "record: bad list at argument %d\n", at);
+        exit(2);
+    }
+    for (i = 0; i < *n; i++) vrs[i] = (fmi2ValueReference)atoi(argv[at + 1 + i]);
+    return at + 1 + *n;
+}
+
+static int read_positions(char **argv, int at, int argc, int *positions, int n_max)
+{
+    int i;
+    for (i = 0; i < 4; i++) {
+        if (at + i >= argc || (positions[i] = atoi(argv[at + i])) < 0 || positions[i] >= n_max) {
+            fprintf(stderr, "record: bad position at argument %d\n", at + i);
+            exit(2);
+        }
+    }
+    return at + 4;
+}
+
 static void initialize(const char *path, fmi2Component c)
 {
     void *lib = dlopen(path, RTLD_NOW | RTLD_LOCAL | RTLD_NOLOAD);
@@ -67,7 +105,12 @@ int main(int argc, char **argv)
     double H, t0, t1;
     struct timespec ts;
     int i;
-    if (argc != 7 + 9 + 14) {
+    Recorded rec = {0};
+    int recording = argc > 30;
+    double *table = NULL, *row;
+    long row_length = 0;
+    fmi2Status (*get_integer[3])(fmi2Component, const fmi2ValueReference[], size_t, fmi2Integer[]);
+    if (argc < 7 + 9 + 14 || (recording && strcmp(argv[30], "record") != 0)) {
         fprintf(stderr, "usage: see the comment at the top of coupled_native.c\n");
         return 2;
     }
@@ -83,6 +126,20 @@ int main(int argc, char **argv)
     s_k = (fmi2ValueReference)atoi(argv[28]);
     s_l0 = (fmi2ValueReference)atoi(argv[29]);
 
+    if (recording) {
+        int at = read_list(argv, 31, argc, rec.real, &rec.n_real);
+        at = read_positions(argv, at, argc, rec.bob, rec.n_real);
+        at = read_list(argv, at, argc, rec.ints, &rec.n_int);
+        at = read_list(argv, at, argc, rec.spring, &rec.n_spring);
+        at = read_positions(argv, at, argc, rec.force, rec.n_spring);
+        if (at != argc) {
+            fprintf(stderr, "record: %d arguments left over\n", argc - at);
+            return 2;
+        }
+        row_length = 1 + rec.n_spring + 2 * (rec.n_real + rec.n_int);
+        table = malloc(sizeof(double) * row_length * (steps + 1));
+        if (!table) return 2;
+    }
     spring = open_unit(argv[3], argv[4], "spring");
     left = open_unit(argv[1], argv[2], "left");
     right = open_unit(argv[1], argv[2], "right");
@@ -98,6 +155,11 @@ int main(int argc, char **argv)
     left.get_real(left.c, p_out, 4, left_out);
     right.get_real(right.c, p_out, 4, right_out);
     spring.get_real(spring.c, s_out, 4, spring_out);
+    {
+        void *lib = dlopen(argv[1], RTLD_NOW | RTLD_LOCAL | RTLD_NOLOAD);
+        *(void **)&get_integer[1] = dlsym(lib, "fmi2GetInteger");
+        get_integer[2] = get_integer[1];
+    }
 
     clock_gettime(CLOCK_MONOTONIC, &ts);
     t0 = ts.tv_sec + 1e-9 * ts.tv_nsec;
@@ -116,13 +178,35 @@ int main(int argc, char **argv)
             fprintf(stderr, "fmi2DoStep failed at t = %g\n", t);
             return 1;
         }
-        spring.get_real(spring.c, s_out, 4, spring_out);
-        left.get_real(left.c, p_out, 4, left_out);
-        right.get_real(right.c, p_out, 4, right_out);
+        if (recording) {
+            Unit *units[3] = {&spring, &left, &right};
+            double *bob[2] = {left_out, right_out};
+            fmi2Integer ints[MAX_RECORDED];
+            int u, column = 1;
+            row = table + (k + 1) * row_length;
+            row[0] = t + H;
+            units[0]->get_real(units[0]->c, rec.spring, rec.n_spring, row + column);
+            for (i = 0; i < 4; i++) spring_out[i] = row[column + rec.force[i]];
+            column += rec.n_spring;
+            for (u = 1; u < 3; u++) {
+                units[u]->get_real(units[u]->c, rec.real, rec.n_real, row + column);
+                for (i = 0; i < 4; i++) bob[u - 1][i] = row[column + rec.bob[i]];
+                column += rec.n_real;
+            }
+            for (u = 1; u < 3; u++) {
+                get_integer[u](units[u]->c, rec.ints, rec.n_int, ints);
+                for (i = 0; i < rec.n_int; i++) row[column++] = ints[i];
+            }
+        } else {
+            spring.get_real(spring.c, s_out, 4, spring_out);
+            left.get_real(left.c, p_out, 4, left_out);
+            right.get_real(right.c, p_out, 4, right_out);
+        }
     }
     clock_gettime(CLOCK_MONOTONIC, &ts);
     t1 = ts.tv_sec + 1e-9 * ts.tv_nsec;
     printf("%.9g %.17g\n", (t1 - t0) / steps, left_out[0]);
+    free(table);
     spring.free_instance(spring.c);
     left.free_instance(left.c);
     right.free_instance(right.c);

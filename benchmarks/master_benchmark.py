@@ -89,7 +89,9 @@ def peer_cost(peer: str, steps: int) -> float | None:
     return float(lines[-1].split()[1]) if result.returncode == 0 and lines else None
 
 
-def native_cost(steps: int) -> float:
+def native_cost(steps: int, recording: bool = False) -> float:
+    """The plain C loop; `recording`: with the calls of a master that records every output (one get
+    of each unit's float outputs and one of its integers per step, written into a table)."""
     pendulum = read_model_description(str(build_dir() / "fmus" / "SimplePendulum.fmu"))
     spring = read_model_description(str(build_dir() / "fmus" / "Spring.fmu"))
     p = {v.name: v.valueReference for v in pendulum.modelVariables}
@@ -101,7 +103,25 @@ def native_cost(steps: int) -> float:
                str(build_dir() / "lib" / "SimplePendulum" / "SimplePendulum.so"), pendulum.guid,
                str(build_dir() / "lib" / "Spring" / "Spring.so"), spring.guid, str(steps), str(STEP)] + \
               [str(v) for v in vrs]
+    if recording:
+        command += ["record"] + _recorded(pendulum, ("x", "y", "v_x", "v_y"), integers=True) + \
+            _recorded(spring, ("Fa_x", "Fa_y", "Fb_x", "Fb_y"), integers=False)
     return float(subprocess.run(command, check=True, capture_output=True, text=True).stdout.split()[0])
+
+
+def _recorded(description, routed: tuple[str, ...], integers: bool) -> list[str]:
+    """coupled_native's `record` arguments for one FMU: its float outputs, where the routed ones are
+    among them, and (for a pendulum) its integer outputs, in the order the harness records them."""
+    outputs = [v for v in description.modelVariables if v.causality == "output"]
+    floats = [v for v in outputs if v.type == "Real"]
+    names = [v.name for v in floats]
+    arguments = [len(floats)] + [v.valueReference for v in floats]
+    if integers:
+        ints = [v for v in outputs if v.type in ("Integer", "Enumeration")]
+        arguments += [names.index(n) for n in routed] + [len(ints)] + [v.valueReference for v in ints]
+    else:
+        arguments += [names.index(n) for n in routed]
+    return [str(a) for a in arguments]
 
 
 def main() -> int:
@@ -117,6 +137,7 @@ def main() -> int:
         "libcosim (jacobi/hold)": lambda: peer_cost("libcosim", args.steps),
         "ecos (jacobi/hold)": lambda: peer_cost("ecos", args.steps),
         "native C loop (jacobi/hold)": lambda: native_cost(args.steps),
+        "native C loop, same calls": lambda: native_cost(args.steps, recording=True),
     }
     samples: dict[str, list[float]] = {name: [] for name in runs}
     for _ in range(args.rounds):

@@ -1,0 +1,145 @@
+"""One component as the master's parts see it: inputs in, one step, outputs out, and FMU states that
+are saved, restored and released. Every part of the master (algorithms, controls, the C loop) works
+through this one interface; it calls the FMUs' C functions with preallocated ctypes arrays."""
+from __future__ import annotations
+
+import ctypes
+
+import numpy as np
+
+from harness.cosim.structure import Component, System
+from harness.errors import HarnessError
+from harness.fmi.fmu_instance import ERROR, STATUS_NAMES, FmuInstance
+
+
+def _doubles(n: int):
+    return (ctypes.c_double * max(n, 1))()
+
+
+class Unit:
+    """One component with its preallocated buffers. `y_now`/`dy_now` are the outputs (and their
+    derivatives) at the start of the macro step; `y_next_view`/`dy_next_view` what the last read
+    returned; `u_view`/`du_view` the inputs (and derivatives) the next write hands over."""
+
+    def __init__(self, component: Component, system: System):
+        self.name = component.name
+        self.instance = FmuInstance(component.fmu, name=component.name)
+        self.live_states = 0  # FMU states saved and not yet released
+        try:
+            self._prepare(component, system)
+        except BaseException:
+            self.instance.free()
+            raise
+
+    def _prepare(self, component: Component, system: System) -> None:
+        self.start = component.start
+        variables = self.instance.model_description.modelVariables
+        self.real_outputs, self.integer_outputs = self.instance.recorded_outputs(
+            [v.name for v in variables if v.causality == "output"])
+        self.inputs = [c for c in system.connections if c.target == self.name]
+        for c in self.inputs:
+            variable = self.instance.variables.get(c.input)
+            if variable is None or variable.causality != "input":
+                raise HarnessError(f"connection {c}: {self.name} has no input {c.input!r}")
+        n_out, n_in, n_int = len(self.real_outputs), len(self.inputs), len(self.integer_outputs)
+        self.out_vrs = (ctypes.c_uint * max(n_out, 1))(*[self.instance.reference(n) for n in self.real_outputs])
+        self.in_vrs = (ctypes.c_uint * max(n_in, 1))(*[self.instance.reference(c.input) for c in self.inputs])
+        self.orders_out = (ctypes.c_int * max(n_out, 1))(*([1] * n_out))
+        self.orders_in = (ctypes.c_int * max(n_in, 1))(*([1] * n_in))
+        self.y_next, self.dy_next = _doubles(n_out), _doubles(n_out)  # after this unit's step
+        self.u, self.du = _doubles(n_in), _doubles(n_in)
+        self.integers = self.instance.integer_reader(self.integer_outputs)
+        self.ints = np.zeros(max(n_int, 1), dtype=self.integers.dtype)
+        self.n_out, self.n_in, self.n_int = n_out, n_in, n_int
+        # numpy views on the ctypes buffers: routing is vectorised, no per-variable Python work
+        self.y_next_view = np.ctypeslib.as_array(self.y_next)[:n_out]
+        self.dy_next_view = np.ctypeslib.as_array(self.dy_next)[:n_out]
+        self.u_view = np.ctypeslib.as_array(self.u)[:n_in]
+        self.du_view = np.ctypeslib.as_array(self.du)[:n_in]
+        self.y_now = np.zeros(n_out)
+        self.dy_now = np.zeros(n_out)
+        raw = self.instance.raw
+        self.component = raw.component
+        self.set_real, self.get_real, self.do_step = raw.set_real, raw.get_real, raw.do_step
+        self.set_derivatives = raw.input_derivatives()  # None for FMI 3.0
+        self.get_derivatives = raw.output_derivatives()
+        self.names = dict(raw.names, set=raw.float_type.setter, get=raw.float_type.getter)  # for messages
+        energy_name = "E" if "E" in self.real_outputs else "E_pot" if "E_pot" in self.real_outputs else None
+        self.energy_index = self.real_outputs.index(energy_name) if energy_name else None
+        self.can_save = bool(self.instance.model_description.coSimulation.canGetAndSetFMUstate)
+
+    def check(self, status: int, what: str) -> int:
+        if status >= ERROR:
+            raise HarnessError(f"{self.name}: {what} returned {STATUS_NAMES[status]}: {self.instance.last_message()}")
+        return status
+
+    def read_outputs(self, derivatives: bool) -> None:
+        self.check(self.get_real(self.component, self.out_vrs, self.n_out, self.y_next), self.names["get"])
+        if derivatives:
+            self.check(self.get_derivatives(self.component, self.out_vrs, self.n_out, self.orders_out,
+                                            self.dy_next), self.names["output_derivatives"])
+
+    def write_inputs(self, derivatives: bool) -> None:
+        self.check(self.set_real(self.component, self.in_vrs, self.n_in, self.u), self.names["set"])
+        if derivatives:
+            self.check(self.set_derivatives(self.component, self.in_vrs, self.n_in, self.orders_in, self.du),
+                       self.names["input_derivatives"])
+
+    def step(self, t: float, H: float) -> int:
+        return self.check(self.do_step(self.component, t, H, 1), f"{self.names['do_step']} at t = {t}")
+
+    def accept(self, derivatives: bool) -> None:
+        """The outputs just read become those at the start of the next macro step."""
+        self.y_now[:] = self.y_next_view
+        if derivatives:
+            self.dy_now[:] = self.dy_next_view
+
+    # ---- FMU states: each saved state is released by whoever saved it, once it has served
+    def save(self) -> ctypes.c_void_p:
+        state = ctypes.c_void_p()
+        self.check(self.instance.role("get_state", ctypes.byref(state)), self.names["get_state"])
+        self.live_states += 1
+        return state
+
+    def restore(self, state: ctypes.c_void_p) -> None:
+        self.check(self.instance.role("set_state", state), self.names["set_state"])
+
+    def release(self, state: ctypes.c_void_p) -> None:
+        if state.value and self.instance.fmu is not None:
+            self.live_states -= 1
+            self.check(self.instance.role("free_state", ctypes.byref(state)), self.names["free_state"])
+
+    def free(self) -> None:
+        self.instance.free()
+
+
+class Snapshot:
+    """Every unit's FMU state and exchanged values at one moment, to roll back to. Released when the
+    `with` block ends, whatever happens inside it, so no state outlives its use."""
+
+    def __init__(self, units: list[Unit]):
+        self.units = units
+        self.states: list[ctypes.c_void_p] = []
+        try:
+            for unit in units:
+                self.states.append(unit.save())
+        except BaseException:
+            self.release()
+            raise
+        self.values = [(unit.y_now.copy(), unit.dy_now.copy()) for unit in units]
+
+    def restore(self) -> None:
+        for unit, state, (y, dy) in zip(self.units, self.states, self.values):
+            unit.restore(state)
+            unit.y_now[:], unit.dy_now[:] = y, dy
+
+    def release(self) -> None:
+        states, self.states = self.states, []
+        for unit, state in zip(self.units, states):
+            unit.release(state)
+
+    def __enter__(self) -> "Snapshot":
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.release()
