@@ -156,12 +156,19 @@ def command_run(args: argparse.Namespace) -> int:
     from harness.cosim.system import load_system
     from harness.output import csv_header, output_file, written
     out = output_file(args.out, "--out", system_inputs(args.system))
+    reference = output_file(args.reference, "--reference", system_inputs(args.system), outputs={"--out": out}) \
+        if args.reference else None
     with load_system(args.system) as system:
         out = output_file(out, "--out", component_files(args.system, system))
         stop = args.stop if args.stop is not None else system.stop
         step = args.step if args.step is not None else system.step
         if stop is None or step is None:
             raise HarnessError(f"{args.system} defines no stop time or step: give --stop and --step")
+        scene = None
+        if reference is not None:  # refused before the run when the scene has no derived reference
+            from harness.studies.monolithic import MonolithicScene
+            reference = output_file(reference, "--reference", component_files(args.system, system), outputs={"--out": out})
+            scene = MonolithicScene(system)
         options = MasterOptions(stop=stop, step=step, algorithm=args.algorithm, extrapolation=args.extrapolation,
                                 on_discard=args.on_discard, progress=not args.quiet, iterate_tol=args.iterate,
                                 tolerance=args.tolerance)
@@ -171,16 +178,36 @@ def command_run(args: argparse.Namespace) -> int:
                 stream.write(",".join(f"{v:.17g}" for v in row) + "\n")
 
             result = master.run(on_row=write_row)
+            columns = master.columns
+        if scene is not None:
+            from harness.fmi.simulation import communication_grid
+            write_reference(scene, columns, communication_grid(options.start, options.stop, options.step), reference)
     steps = (f"{result.macro_steps} macro steps chosen by step doubling (rows every {step:g} s)" if args.tolerance
              else f"{result.macro_steps} macro steps of {step:g} s")
     print(f"wrote {out}: {steps}, {args.algorithm}, {result.extrapolation} "
           f"extrapolation; energy residual {result.energy_residual:.3e} J"
           + (f", {result.retries} retried steps" if result.retries else "")
           + (f", {result.iterations} iteration passes ({result.unconverged} unconverged)" if args.iterate else ""))
+    if scene is not None:
+        print(f"wrote {reference}: the derived monolithic reference ({scene.evaluations} evaluations of its "
+              f"{len(scene.start)} states)")
     if result.stopped_at is not None:
         print(f"harness: stopped at t = {result.stopped_at:g}: {result.message}", file=sys.stderr)
         return 1
     return 0
+
+
+def write_reference(scene, columns: list[str], times, path: Path) -> None:
+    """The reference's values at `times` under the run's own column names (those it determines)."""
+    import numpy as np
+
+    from harness.output import csv_header, written
+    values = scene.solve(times)
+    kept = [c for c in columns if c in values]
+    with written(path, csv_header(kept)) as stream:
+        table = np.column_stack([values[c] for c in kept])
+        for row in table:
+            stream.write(",".join(f"{v:.17g}" for v in row) + "\n")
 
 
 def command_validate(args: argparse.Namespace) -> int:
@@ -356,6 +383,9 @@ def build_parser() -> argparse.ArgumentParser:
                    help="adapt the macro step by step doubling so that the coupling error stays below TOL; "
                         "--step is then the output interval and the largest macro step")
     p.add_argument("--out", default="run.csv", help="CSV file: time and <component>.<output> columns")
+    p.add_argument("--reference", metavar="FILE.csv",
+                   help="also write the scene's derived monolithic solution (objects joined by Springs) at the same "
+                        "communication points, under the same column names, for every state and output it determines")
     p.add_argument("--quiet", action="store_true", help="no progress lines")
     p.set_defaults(run=command_run)
 
@@ -372,7 +402,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--quick", action="store_true", help="work-precision and stability: every other step, "
                    "tolerance and damping ratio; long-run: 1,000 periods instead of 10,000 (a chart in seconds)")
     p.add_argument("--repeats", type=count(1000), default=3, help="timed repeats per point; the median is kept (default 3)")
-    p.add_argument("--system", help="coupling: the system (default scenes/coupled_pendulums.json)")
+    p.add_argument("--scene", "--system", dest="system",
+                   help="coupling: a scene of objects joined by Springs (default scenes/coupled_pendulums.json)")
     p.add_argument("--stop", type=positive_number, help="coupling: simulated time [s] (default: the system's)")
     p.add_argument("--full", action="store_true", help="stability: the full atlas (19 damping ratios instead of 8)")
     p.add_argument("--workers", type=count(256), help="parallel worker processes (default: all local cores)")

@@ -14,7 +14,8 @@ from harness.cli import main
 from harness.cosim.system import load_system
 from harness.fmi.fmus import PROJECT_ROOT
 from harness.objects.thesis.reference import slope
-from harness.studies.coupling import CoupledPendulums, read_csv
+from harness.studies.coupling import read_csv
+from pair_reference import CoupledPair
 
 SCENE = PROJECT_ROOT / "scenes" / "coupled_pendulums.json"
 
@@ -63,56 +64,47 @@ def test_iteration_converges_to_one_answer_and_costs_passes(sweep):
         assert gs.do_steps > 2 * single.do_steps and gs.rhs_evals > 2 * single.rhs_evals
 
 
-def test_the_monolithic_reference_conserves_energy(fmu_paths):
-    physics = CoupledPendulums.from_system(load_system(SCENE))
+def test_the_hand_coded_pair_conserves_energy(fmu_paths):
+    """The independent reference the derived one is checked against (tests/test_monolithic.py) is
+    itself right: its energy, written out by hand, is constant."""
+    physics = CoupledPair.from_system(load_system(SCENE))
     t = np.linspace(0, 10, 2001)
     a, b = physics.reference(t)
-    ya, yb = a[:, 1], b[:, 1]
-    # speeds from the positions' spectral derivative would be noisy: differentiate the reference's states instead
-    from scipy.integrate import solve_ivp
-    start = [physics.left["phi"], physics.left["omega"], physics.right["phi"], physics.right["omega"]]
-    y = solve_ivp(physics.rhs, (0, 10), start, method="DOP853", rtol=1e-12, atol=1e-12, t_eval=t).y
+    y = physics.states(t)
     L, m, g, k, l0 = physics.left["L"], physics.left["m"], physics.left["g"], physics.spring["k"], physics.spring["l0"]
     stretch = np.hypot(*(b - a).T) - l0
-    energy = m * L ** 2 * (y[1] ** 2 + y[3] ** 2) / 2 + m * g * (ya + yb) + k * stretch ** 2 / 2
+    energy = m * L ** 2 * (y[1] ** 2 + y[3] ** 2) / 2 + m * g * (a[:, 1] + b[:, 1]) + k * stretch ** 2 / 2
     assert np.max(np.abs(energy - energy[0])) < 1e-9 * abs(energy[0])
     assert np.ptp(stretch) > 0.01  # the spring does work
 
 
-def test_a_system_of_another_shape_is_a_one_line_error(fmu_paths, tmp_path, capsys):
-    scene = tmp_path / "one.json"
-    scene.write_text(json.dumps({"name": "one", "stop": 1.0, "step": 0.01,
-                                 "components": {"p": {"fmu": "SimplePendulum"}}, "connections": []}))
-    assert main(["chart", "coupling", "--system", str(scene), "--out", str(tmp_path / "out")]) == 2
-    err = capsys.readouterr().err
-    assert "two SimplePendulums whose bobs are joined by one Spring" in err and err.count("\n") == 1
+def test_any_spring_scene_has_its_chart(fmu_paths, tmp_path):
+    """Three pendulums in a row, through --scene: the same orders as the pair."""
+    out = tmp_path / "row"
+    assert main(["chart", "coupling", "--scene", str(PROJECT_ROOT / "scenes" / "pendulums_in_a_row.json"), "--out",
+                 str(out), "--repeats", "1", "--stop", "2"]) == 0
+    points = read_csv(out / "coupling.csv")
+    for configuration, low, high in (("gauss-seidel, hold", 0.7, 1.3), ("gauss-seidel, linear", 1.7, 2.5)):
+        mine = series(points, configuration)[:3]
+        assert low <= slope([p.step for p in mine], [p.error for p in mine]) <= high, (configuration, mine)
 
 
 @pytest.mark.parametrize("change, named", [
-    ("no forces back", "spring.Fa_x -> left.F_x"),
-    ("crossed velocity", "right.v_x -> spring.a_vx"),
+    ("object to object", "connection left.x -> right.F2_x joins two objects directly"),
     ("linear model", "left.model = 'linear'"),
-    ("a third object", "DoublePendulum"),
 ])
-def test_a_scene_the_reference_does_not_describe_is_refused_by_what_differs(fmu_paths, tmp_path, capsys, change,
-                                                                             named):
-    """The standard scene with one thing changed has another monolithic reference: the chart and the
-    coupled planner refuse it, naming the difference, rather than measure against the wrong one."""
+def test_a_scene_without_a_derived_reference_is_refused_by_what_differs(fmu_paths, tmp_path, capsys, change, named):
+    """The chart and the coupled planner refuse a scene whose monolithic reference cannot be derived,
+    naming why, rather than measure against a wrong one."""
     scene = json.loads(SCENE.read_text())
-    if change == "no forces back":
-        scene["connections"] = [c for c in scene["connections"] if not c[0].startswith("spring.F")]
-    elif change == "crossed velocity":
-        scene["connections"] = [["right.v_x", "spring.a_vx"] if c == ["left.v_x", "spring.a_vx"] else c
-                                for c in scene["connections"]]
-    elif change == "linear model":
-        scene["components"]["left"]["start"]["model"] = "linear"
+    if change == "object to object":
+        scene["connections"].append(["left.x", "right.F2_x"])
     else:
-        scene["components"]["extra"] = {"fmu": "DoublePendulum"}
+        scene["components"]["left"]["start"]["model"] = "linear"
     path = tmp_path / "changed.json"
     path.write_text(json.dumps(scene))
-    for command in (["chart", "coupling", "--system", str(path), "--out", str(tmp_path / "out"), "--repeats", "1"],
+    for command in (["chart", "coupling", "--scene", str(path), "--out", str(tmp_path / "out"), "--repeats", "1"],
                     ["plan", str(path), "--tolerance", "0.001", "--out", str(tmp_path / "plan.csv")]):
         assert main(command) == 2, command
         err = capsys.readouterr().err
-        assert "the coupling reference knows one scene only" in err and named in err and err.count("\n") == 1, err
-    assert CoupledPendulums.from_system(load_system(SCENE)).names == ("left", "right")
+        assert named in err and err.count("\n") == 1, err

@@ -1,5 +1,6 @@
 """The master against an independent monolithic reference of the coupled pendulums: the two
-pendulums' and the spring's equations combined and integrated by scipy at tight tolerance."""
+pendulums' and the spring's equations combined by hand and integrated by scipy at tight tolerance
+(tests/pair_reference.py)."""
 from __future__ import annotations
 
 import dataclasses
@@ -11,7 +12,7 @@ from harness.cosim.master import MasterOptions, run_system
 from harness.cosim.system import load_system
 from harness.fmi.fmus import PROJECT_ROOT, build_dir
 from harness.objects.thesis.reference import slope
-from harness.studies.coupling import CoupledPendulums
+from pair_reference import CoupledPair
 
 SCENE = PROJECT_ROOT / "scenes" / "coupled_pendulums.json"
 G, L, M, K, L0, GAP = 9.81, 1.0, 1.0, 10.0, 1.5, 1.5
@@ -19,12 +20,12 @@ T = 3.0
 
 
 def monolithic(t_eval: np.ndarray, c: float = 0.0) -> dict[str, np.ndarray]:
-    """The library's monolithic reference (harness.studies.coupling), spring damping c."""
+    """The hand-coded monolithic reference, spring damping c."""
     system = load_system(SCENE)
     spring = next(x for x in system.components if x.name == "spring")
     damped = dataclasses.replace(system, components=[dataclasses.replace(spring, start={**spring.start, "c": c})
                                                      if x is spring else x for x in system.components])
-    left, right = CoupledPendulums.from_system(damped).reference(t_eval)
+    left, right = CoupledPair.from_system(damped).reference(t_eval)
     return {"left.x": left[:, 0], "left.y": left[:, 1], "right.x": right[:, 0], "right.y": right[:, 1]}
 
 

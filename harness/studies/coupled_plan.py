@@ -1,8 +1,9 @@
-"""Planning coupled objects (see `harness.studies.planner`): two SimplePendulums joined by a Spring, stepped by
-the Gauss-Seidel master with linear extrapolation. One method and internal step for the pendulums
-and a communication step H are chosen together; the prediction doubles H and h together (the
-coupling is second order, the method order p: error ~ D 2^q / (2^q - 1), q = min(2, p)), and the
-plan is verified against the monolithic reference."""
+"""Planning coupled objects (see `harness.studies.planner`): any scene of objects joined by Springs,
+stepped by the Gauss-Seidel master with linear extrapolation. One method and internal step for all
+objects and a communication step H are chosen together; the prediction doubles H and h together
+(the coupling is second order, the method order p: error ~ D 2^q / (2^q - 1), q = min(2, p)), and
+the plan is verified against the scene's derived monolithic reference (`harness.studies.monolithic`).
+Stability is judged on the eigenvalues of the whole scene's equations linearized at its start."""
 from __future__ import annotations
 
 import math
@@ -13,53 +14,61 @@ import numpy as np
 from harness.cosim.master import MasterOptions, run_system
 from harness.cosim.structure import System
 from harness.errors import HarnessError
+from harness.fmi.fmu_instance import accepted_methods
 from harness.fmi.methods import ORDER
-from harness.studies.coupling import CoupledPendulums
+from harness.studies.coupling import derived_reference
+from harness.studies.monolithic import MonolithicScene
 from harness.studies.plans import DEFAULT, SAFETY, ObjectPlan, largest_distance, step_doubling
-from harness.studies.stability import linearized_eigenvalues, method_tables, stable_over
+from harness.studies.stability import method_tables, stable_over
 
 COMMUNICATION_DIVISORS = (1, 2, 4, 8, 16)
 INTERNAL_DIVISORS = (1, 2, 4, 8, 16, 32)
 
 
-def _run(system: System, names: tuple[str, str], method: str, H: float, h: float, duration: float,
-         frame: float) -> tuple[np.ndarray, dict[str, int]]:
-    """Both bobs at the frames (frames, 2, 2) and each pendulum's evaluations; inf after a stop."""
-    components = [replace(c, start={**c.start, "solver": method, "h": h}) if c.name in names else c
+def _run(system: System, objects: dict[str, int], pairs: list[tuple[str, str]], method: str, H: float, h: float,
+         duration: float, frame: float) -> tuple[np.ndarray, dict[str, int]]:
+    """Every object point at the frames (frames, points, 2) and each object's evaluations (a Jacobian
+    counts one per state, as `FmuInstance.work`); inf after a stop."""
+    components = [replace(c, start={**c.start, "solver": method, "h": h}) if c.name in objects else c
                   for c in system.components]
     result = run_system(replace(system, components=components),
                         MasterOptions(stop=duration, step=H, algorithm="gauss-seidel", extrapolation="linear"))
     every = max(1, round(frame / H))
     frames = len(np.arange(0, len(result.time), every))
-    positions = np.full((frames, 2, 2), np.inf)
+    positions = np.full((frames, len(pairs), 2), np.inf)
     if result.stopped_at is None:
-        for k, name in enumerate(names):
-            positions[:, k, 0] = result[f"{name}.x"][::every]
-            positions[:, k, 1] = result[f"{name}.y"][::every]
-    # FmuInstance.work's count: a Jacobian of a simple pendulum is 2 directional derivatives
-    evaluations = {name: int(result[f"{name}.n_rhs"][-1]) + 2 * int(result[f"{name}.n_jacobians"][-1])
-                   for name in names}
+        for k, (x, y) in enumerate(pairs):
+            positions[:, k, 0] = result[x][::every]
+            positions[:, k, 1] = result[y][::every]
+    evaluations = {name: int(result[f"{name}.n_rhs"][-1]) + states * int(result[f"{name}.n_jacobians"][-1])
+                   for name, states in objects.items()}
     return positions, evaluations
 
 
 def plan_coupled(system: System, tolerance: float, duration: float, frame: float, scheduler=None,
                  workers=None) -> list[ObjectPlan]:
-    physics = CoupledPendulums.from_system(system)
-    names = physics.names
+    scene = MonolithicScene(system)
+    objects = {name: 2 * kind.functions["n"] for kind in scene.kinds.values() for name in kind.names}
+    kinds = {name: identifier for identifier, kind in scene.kinds.items() for name in kind.names}
     grid = np.arange(round(duration / frame) + 1) * frame
-    left, right = physics.reference(grid)
-    reference = np.stack([left, right], axis=1)
+    columns, pairs = derived_reference(system, grid)
+    reference = np.stack([np.column_stack([columns[x], columns[y]]) for x, y in pairs], axis=1)
+    owner = [x.split(".")[0] for x, _ in pairs]  # the object each traced point belongs to
     tables = method_tables()
-    # the stiffest motion: each pendulum's own mode, or the bobs bouncing on the spring
-    spring_rate = math.sqrt(2 * physics.spring["k"] / min(physics.left["m"], physics.right["m"]))
-    eigenvalues = [*linearized_eigenvalues("SimplePendulum", physics.left),
-                   *linearized_eigenvalues("SimplePendulum", physics.right), 1j * spring_rate, -1j * spring_rate]
+    eigenvalues = list(scene.eigenvalues())
+    fmus = {str(system.component(name).fmu) for name in objects}
+    methods = [m for m in ORDER if all(m in accepted_methods(fmu) for fmu in fmus)]  # one method for all objects
+
+    def errors_of(positions: np.ndarray) -> dict[str, float]:
+        return {name: largest_distance(positions[:, [k for k, o in enumerate(owner) if o == name]],
+                                       reference[:, [k for k, o in enumerate(owner) if o == name]])
+                for name in objects}
 
     def predict(method: str, H: float, h: float):
         evaluations = {}
 
         def run(scale: float) -> np.ndarray:
-            positions, evaluations[scale] = _run(system, names, method, H * scale, h * scale, duration, frame)
+            positions, evaluations[scale] = _run(system, objects, pairs, method, H * scale, h * scale, duration, frame)
             return positions
         predicted = step_doubling(run, min(2, ORDER[method]), tolerance)
         return None if predicted is None else (predicted, evaluations[1.0])
@@ -67,7 +76,7 @@ def plan_coupled(system: System, tolerance: float, duration: float, frame: float
     candidates = []
     for m in COMMUNICATION_DIVISORS:
         H = frame / m
-        for method in ORDER:
+        for method in methods:
             for k in INTERNAL_DIVISORS:
                 h = H / k
                 if not stable_over(tables[method], eigenvalues, h, duration):
@@ -78,17 +87,19 @@ def plan_coupled(system: System, tolerance: float, duration: float, frame: float
                     break
         if candidates:
             break  # a coarser communication step already works: finer ones only add exchanges
-    default_positions, default_evaluations = _run(system, names, *DEFAULT[:1], frame, DEFAULT[1], duration, frame)
-    default_errors = [largest_distance(default_positions[:, k:k + 1], reference[:, k:k + 1]) for k in range(2)]
-    if max(default_errors) <= tolerance:  # the default is what the plan is measured against: always a choice
-        candidates.append((sum(default_evaluations.values()), DEFAULT[0], frame, DEFAULT[1], max(default_errors)))
+    default_positions, default_evaluations = _run(system, objects, pairs, DEFAULT[0], frame, DEFAULT[1], duration,
+                                                  frame)
+    default_errors = errors_of(default_positions)
+    if max(default_errors.values()) <= tolerance:  # the default is what the plan is measured against: always a choice
+        candidates.append((sum(default_evaluations.values()), DEFAULT[0], frame, DEFAULT[1],
+                           max(default_errors.values())))
     for cost, method, H, h, predicted in sorted(candidates):
-        positions, evaluations = _run(system, names, method, H, h, duration, frame)
-        errors = [largest_distance(positions[:, k:k + 1], reference[:, k:k + 1]) for k in range(2)]
-        if max(errors) <= tolerance:
-            return [ObjectPlan(name, "SimplePendulum", "nonlinear", method, h, predicted, errors[k],
-                               evaluations[name], default_errors[k], default_evaluations[name],
+        positions, evaluations = _run(system, objects, pairs, method, H, h, duration, frame)
+        errors = errors_of(positions)
+        if max(errors.values()) <= tolerance:
+            return [ObjectPlan(name, kinds[name], "nonlinear", method, h, predicted, errors[name],
+                               evaluations[name], default_errors[name], default_evaluations[name],
                                "step doubling of H and h (coupled)", tolerance, H)
-                    for k, name in enumerate(names)]
+                    for name in objects]
     raise HarnessError(f"{system.name}: no communication step down to {frame / COMMUNICATION_DIVISORS[-1]:.3g} s "
                        f"meets {tolerance:.3g} m")

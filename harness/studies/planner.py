@@ -20,9 +20,9 @@ visible points by less than that (`harness.studies.references`). That is the ver
 next cheapest candidate is verified instead. The visible points are the scene's traces, by default
 the thesis pendulums' outer mass or an object's last point.
 
-Objects joined by connections are planned together: one method and step ratio for all pendulums and
-a communication step H (Gauss-Seidel, linear extrapolation), predicted by doubling H and h together
-and verified against the monolithic reference (`coupling.CoupledPendulums`).
+Objects joined by connections are planned together: one method and internal step for all objects
+and a communication step H (Gauss-Seidel, linear extrapolation), predicted by doubling H and h
+together and verified against the scene's derived monolithic reference (`harness.studies.monolithic`).
 """
 from __future__ import annotations
 
