@@ -171,7 +171,8 @@ def command_run(args: argparse.Namespace) -> int:
             scene = MonolithicScene(system)
         options = MasterOptions(stop=stop, step=step, algorithm=args.algorithm, extrapolation=args.extrapolation,
                                 on_discard=args.on_discard, progress=not args.quiet, iterate_tol=args.iterate,
-                                tolerance=args.tolerance)
+                                tolerance=args.tolerance, energy_tol=args.energy_tolerance,
+                                energy_correction=args.energy_correction)
         with Master(system, options) as master, written(out, csv_header(master.columns)) as stream:
 
             def write_row(row) -> None:  # rows go out as they come: a stopped run keeps what it computed
@@ -183,11 +184,14 @@ def command_run(args: argparse.Namespace) -> int:
             from harness.fmi.simulation import communication_grid
             write_reference(scene, columns, communication_grid(options.start, options.stop, options.step), reference)
     steps = (f"{result.macro_steps} macro steps chosen by step doubling (rows every {step:g} s)" if args.tolerance
-             else f"{result.macro_steps} macro steps of {step:g} s")
+             else f"{result.macro_steps} macro steps chosen by the bonds' energy (rows every {step:g} s)"
+             if args.energy_tolerance else f"{result.macro_steps} macro steps of {step:g} s")
     print(f"wrote {out}: {steps}, {args.algorithm}, {result.extrapolation} "
           f"extrapolation; energy residual {result.energy_residual:.3e} J"
           + (f", {result.retries} retried steps" if result.retries else "")
-          + (f", {result.iterations} iteration passes ({result.unconverged} unconverged)" if args.iterate else ""))
+          + (f", {result.iterations} iteration passes ({result.unconverged} unconverged)" if args.iterate else "")
+          + (f"; the power bonds created {sum(result.bond_energy.values()):.3e} J"
+             + (" before correction" if args.energy_correction else "") if result.bond_energy else ""))
     if scene is not None:
         print(f"wrote {reference}: the derived monolithic reference ({scene.evaluations} evaluations of its "
               f"{len(scene.start)} states)")
@@ -382,6 +386,12 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--tolerance", type=positive_number, metavar="TOL",
                    help="adapt the macro step by step doubling so that the coupling error stays below TOL; "
                         "--step is then the output interval and the largest macro step")
+    p.add_argument("--energy-tolerance", type=positive_number, metavar="J",
+                   help="choose the macro steps by a PI controller on the energy the scene's power bonds create, "
+                        "for at most about J joules over the run; --step is then the output interval and the "
+                        "largest macro step")
+    p.add_argument("--energy-correction", action="store_true",
+                   help="hand the energy the power bonds created back through the next steps' forces")
     p.add_argument("--out", default="run.csv", help="CSV file: time and <component>.<output> columns")
     p.add_argument("--reference", metavar="FILE.csv",
                    help="also write the scene's derived monolithic solution (objects joined by Springs) at the same "

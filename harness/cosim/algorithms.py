@@ -47,6 +47,8 @@ class Exchange:
                 outs.append(source.real_outputs.index(c.output))
                 ins.append(k)
             self.routes.append([(s, np.array(o), np.array(i)) for s, (o, i) in grouped.items()])
+        # per unit: what is added to its routed inputs (the energy correction), or None
+        self.corrections: list[np.ndarray | None] = [None] * len(units)
 
     def feed(self, k: int, H: float, stepped: list[bool]) -> None:
         """Sets the inputs of unit k for the step [t, t + H]; stepped[j]: unit j is already at t + H."""
@@ -66,6 +68,8 @@ class Exchange:
                 unit.u_view[ins] = source.y_now[outs]
                 if linear:
                     unit.du_view[ins] = source.dy_now[outs]
+        if self.corrections[k] is not None:
+            unit.u_view += self.corrections[k]
         unit.write_inputs(linear)
 
     def feed_between(self, k: int, H: float, ends: list[np.ndarray]) -> None:
@@ -78,6 +82,8 @@ class Exchange:
             source = self.units[j]
             unit.u_view[ins] = source.y_now[outs]
             unit.du_view[ins] = (ends[j][outs] - source.y_now[outs]) / H
+        if self.corrections[k] is not None:
+            unit.u_view += self.corrections[k]
         unit.write_inputs(True)
 
     def settle(self, tolerance: float = 1e-14, passes: int = 50) -> None:

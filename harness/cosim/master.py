@@ -27,12 +27,13 @@ from typing import Callable
 import numpy as np
 
 from harness.cosim.algorithms import ALGORITHMS, Exchange
+from harness.cosim.energy import BondedStep, EnergyStepControl, PowerBonds, order_of
 from harness.cosim.controls import Iteration, RetryOnDiscard, StepDoubling, Stepper, Tally
 from harness.cosim.native_core import NativeLoop, load_core
 from harness.cosim.structure import System
 from harness.cosim.unit import Unit
 from harness.errors import HarnessError, where
-from harness.fmi.fmu_instance import DISCARD, ERROR, OK, STATUS_NAMES
+from harness.fmi.fmu_instance import DISCARD, ERROR, OK, STATUS_NAMES, SharedFmus
 from harness.fmi.results import TimeTable
 from harness.fmi.simulation import Progress, check_table_size, communication_grid
 
@@ -51,6 +52,8 @@ class MasterOptions:
     iterate_tol: float | None = None  # iterate each macro step to this change in the outputs
     max_iterations: int = 20
     tolerance: float | None = None    # adapt the macro step by step doubling to this error per step
+    energy_tol: float | None = None   # adapt the macro step to keep the energy the power bonds create [J] below this
+    energy_correction: bool = False   # hand the energy a bond created back through the next step's force
     progress: bool = False
 
     def __post_init__(self) -> None:
@@ -60,7 +63,13 @@ class MasterOptions:
             raise HarnessError(f"--extrapolation {self.extrapolation!r}: choose one of {', '.join(EXTRAPOLATIONS)}")
         if self.on_discard not in ("stop", "retry"):
             raise HarnessError(f"on_discard {self.on_discard!r}: choose stop or retry")
-        for name in ("iterate_tol", "tolerance"):
+        if self.tolerance is not None and self.energy_tol is not None:
+            raise HarnessError("--tolerance (step doubling) and --energy-tolerance each choose the macro steps: "
+                               "give one of them")
+        if self.energy_tol is not None and self.on_discard == "retry":
+            raise HarnessError("--energy-tolerance chooses the macro steps without rollback; it does not combine with "
+                               "--on-discard retry")
+        for name in ("iterate_tol", "tolerance", "energy_tol"):
             value = getattr(self, name)
             if value is not None and not (value > 0 and math.isfinite(value)):
                 raise HarnessError(f"{name} = {value} must be a positive number")
@@ -77,6 +86,7 @@ class CoSimulationResult(TimeTable):
     iterations: int = 0  # passes of iterated macro steps
     unconverged: int = 0  # iterated macro steps that reached max_iterations
     extrapolation: str = "linear"  # what the run used (the default depends on the components' FMI versions)
+    bond_energy: dict[str, float] = field(default_factory=dict)  # bond -> energy it created [J] (energy options)
 
     @property
     def energy_residual(self) -> float:
@@ -92,10 +102,11 @@ class Master:
     def __init__(self, system: System, options: MasterOptions):
         self.system, self.options = system, options
         self.units: list[Unit] = []
+        self.fmus = SharedFmus()  # instances of one FMU share its extraction and its loaded library
         try:  # whatever fails while setting up, the instances made so far are freed
             with where(system.origin, system.workspace):
                 for component in system.components:
-                    self.units.append(Unit(component, system))
+                    self.units.append(Unit(component, system, self.fmus))
                 self.options = dataclasses.replace(options, extrapolation=self._extrapolation(options))
                 self.exchange = Exchange(self.units, self.options.extrapolation == "linear")
                 self._check_states(options)
@@ -104,7 +115,11 @@ class Master:
             raise
         self.tally = Tally()
         self.use_native = True  # the C loop for plain fixed-step runs, when it is built
-        self.interval = self._parts()
+        try:
+            self.interval = self._parts()
+        except BaseException:
+            self.free()
+            raise
 
     def _parts(self) -> Stepper | StepDoubling:
         """What covers one communication interval: the macro step (the algorithm, or iteration over
@@ -113,6 +128,16 @@ class Master:
         algorithm = ALGORITHMS[o.algorithm](self.exchange)
         stepper = Iteration(self.exchange, o.iterate_tol, o.max_iterations, self.tally) if o.iterate_tol \
             else algorithm
+        self.bonds = None
+        if o.energy_tol or o.energy_correction:
+            if not self.system.bonds:
+                raise HarnessError(f"{self.system.name}: the energy-conserving coupling needs power bonds: declare "
+                                   "\"bonds\" in the scene (a force input with the velocity output at its point)")
+            self.bonds = PowerBonds(self.system, self.exchange)
+            stepper = BondedStep(stepper, self.bonds, o.energy_correction)
+            if o.energy_tol:
+                return EnergyStepControl(stepper, o.energy_tol, o.stop - o.start, order_of(self.exchange),
+                                         o.step, self.tally)
         if o.tolerance:
             order = 2 if o.extrapolation == "linear" or o.iterate_tol else 1
             return StepDoubling(stepper, self.exchange, o.tolerance, o.stop - o.start, order, self.tally)
@@ -214,7 +239,7 @@ class Master:
             rows += 1
             if k + 1 == len(grid):
                 break
-            if options.tolerance:
+            if options.tolerance or options.energy_tol:
                 outcome = self.interval.advance(t, grid[k + 1])
             else:
                 outcome = self.interval.step(t, grid[k + 1] - t)
@@ -233,14 +258,17 @@ class Master:
             if progress is not None:
                 progress(grid[k + 1], (k + 1) / (len(grid) - 1))
         messages = [f"{u.name}: {m}" for u in self.units for m in u.instance.log.messages]
+        bond_energy = {str(bond): float(e) for bond, e in zip(self.system.bonds, self.bonds.created)} \
+            if self.bonds is not None else {}
         return CoSimulationResult(columns, table[:rows], energy[:rows], stopped_at, message, tally.macro_steps,
                                   tally.retries, messages, tally.iterations, tally.unconverged,
-                                  self.options.extrapolation)
+                                  self.options.extrapolation, bond_energy)
 
     def _native_loop(self) -> NativeLoop | None:
         """The C loop, for plain fixed-step runs when it is built."""
         o = self.options
-        if o.iterate_tol is not None or o.tolerance is not None or o.on_discard != "stop" or not self.use_native:
+        if o.iterate_tol is not None or o.tolerance is not None or o.on_discard != "stop" or self.bonds is not None \
+                or not self.use_native:
             return None
         core = load_core()
         if core is None:
@@ -251,6 +279,7 @@ class Master:
         for unit in self.units:
             unit.free()
         self.units = []
+        self.fmus.close()
 
     def __enter__(self) -> "Master":
         return self

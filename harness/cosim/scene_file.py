@@ -11,6 +11,7 @@ a one-line HarnessError naming the file and the place.
         "right":  {"fmu": "SimplePendulum", "start": {"anchor_x": 1.5}}
       },
       "connections": [["left.x", "spring.a_x"], ["spring.Fa_x", "left.F_x"]],
+      "bonds": [["left.F_x", "left.v_x", "left.x"], ["left.F_y", "left.v_y", "left.y"]],
       "accuracy": {"position": 0.001},
       "camera": {"scale": 200, "frame_rate": 25}
     }
@@ -18,8 +19,11 @@ a one-line HarnessError naming the file and the place.
 "fmu" is one of the project's FMU names (built on demand; "fmi3/SimplePendulum" names the FMI 3.0
 build) or a path relative to the scene file, of FMI 2.0 or 3.0, mixed as needed. A
 start value is a finite number or the name of an enumeration item. Components are stepped in the
-order listed (this is the Gauss-Seidel order). "accuracy" holds "position" (metres) or "pixels"
-(through the camera's scale).
+order listed (this is the Gauss-Seidel order). "bonds" declares power bonds, each a component's
+force input, the velocity output at the same point and, where the force's source also reads the
+point's position, that position output (the force's source must read them): the master's
+energy-conserving coupling measures the energy each bond creates. "accuracy"
+holds "position" (metres) or "pixels" (through the camera's scale).
 """
 from __future__ import annotations
 
@@ -27,14 +31,14 @@ import json
 import math
 from pathlib import Path
 
-from harness.cosim.structure import Component, Connection, System
+from harness.cosim.structure import Bond, Component, Connection, System
 from harness.errors import HarnessError
 from harness.fmi.fmu_instance import is_number_text
 from harness.fmi.fmus import FMU_NAMES, locate_fmu, project_fmu_name
 
 MAX_SCENE_BYTES = 16 << 20
 
-SCENE_KEYS = ("name", "description", "stop", "step", "components", "connections", "accuracy", "camera")
+SCENE_KEYS = ("name", "description", "stop", "step", "components", "connections", "bonds", "accuracy", "camera")
 COMPONENT_KEYS = ("fmu", "start", "traces")
 ACCURACY_KEYS = ("position", "pixels")
 CAMERA_KEYS = ("scale", "frame_rate")
@@ -220,10 +224,24 @@ def load_scene_file(path: Path) -> System:
         output, input_ = read.pair(pair, "a connection")
         (source, out_name), (target, in_name) = _split(output, "a connection", read), _split(input_, "a connection", read)
         connections.append(Connection(source, out_name, target, in_name))
+    bonds = []
+    listed = data.get("bonds", [])
+    if not isinstance(listed, list):
+        raise read.fail("\"bonds\"", f"must be a list of pairs, not {_kind(listed)}")
+    for entry in listed:
+        if not isinstance(entry, list) or len(entry) not in (2, 3) or not all(isinstance(x, str) for x in entry):
+            raise read.fail("a bond", f"{entry!r} must be a list of two or three \"component.variable\" texts: "
+                                      "force input, velocity output and optionally position output")
+        parts = [_split(x, "a bond", read) for x in entry]
+        if len({component for component, _ in parts}) != 1:
+            raise read.fail("a bond", f"{', '.join(entry)}: the force input and the velocity (and position) output "
+                                      "belong to one component")
+        bonds.append(Bond(parts[0][0], *(name for _, name in parts)))
     accuracy = read.object(data.get("accuracy", {}), "\"accuracy\"", ACCURACY_KEYS)
     if len(accuracy) > 1:
         raise read.fail("\"accuracy\"", "takes \"position\" or \"pixels\", not both")
     camera = read.object(data.get("camera", {}), "\"camera\"", CAMERA_KEYS)
     accuracy = {k: read.positive(v, f"\"accuracy\": {k!r}") for k, v in accuracy.items()}
     camera = {k: read.positive(v, f"\"camera\": {k!r}") for k, v in camera.items()}
-    return System(name, components, connections, stop, step, accuracy, camera, traces, origin=str(path))
+    return System(name, components, connections, stop, step, accuracy, camera, traces, origin=str(path),
+                  bonds=bonds)

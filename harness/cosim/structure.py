@@ -30,6 +30,20 @@ class Connection:
         return f"{self.source}.{self.output} -> {self.target}.{self.input}"
 
 
+@dataclass(frozen=True)
+class Bond:
+    """A power bond: at one point of a component, the force input a connection feeds and the
+    velocity output that the force's source reads back (and, where the source also reads the
+    point's position, that position output). Power F v flows through it."""
+    component: str
+    force: str  # input
+    velocity: str  # output
+    position: str | None = None  # output
+
+    def __str__(self) -> str:
+        return f"{self.component}.{self.force} with {self.component}.{self.velocity}"
+
+
 def component_name_problem(name: str) -> str | None:
     """Why a name cannot label a component: it heads CSV columns as <name>.<variable>."""
     if not name:
@@ -57,6 +71,7 @@ class System:
     # System is collected, or at exit, whichever comes first (copies sent to worker processes do not own it)
     workspace: Path | None = field(default=None, repr=False, compare=False)
     origin: str = field(default="", repr=False, compare=False)  # the file it was read from, for messages
+    bonds: list[Bond] = field(default_factory=list)  # power bonds, checked where the energy coupling uses them
 
     def __post_init__(self) -> None:
         self._remove_workspace = (weakref.finalize(self, shutil.rmtree, self.workspace, True)
@@ -102,6 +117,26 @@ class System:
         for what, value in (("stop", self.stop), ("step", self.step)):
             if value is not None and not _positive(value):
                 raise HarnessError(f"{where}: {what} = {value!r} must be a positive finite number")
+
+    def bond_connections(self, bond: Bond) -> tuple[Connection, Connection, Connection | None]:
+        """The force connection into the bond's force input and the connections from its velocity
+        (and position) output back into the force's source; a HarnessError naming what is missing."""
+        where = f"{self.origin or self.name}: power bond {bond}"
+        force = next((c for c in self.connections if (c.target, c.input) == (bond.component, bond.force)), None)
+        if force is None:
+            raise HarnessError(f"{where}: no connection feeds {bond.component}.{bond.force}")
+        found = []
+        for output in (bond.velocity, bond.position):
+            if output is None:
+                found.append(None)
+                continue
+            back = [c for c in self.connections if (c.source, c.output) == (bond.component, output)
+                    and c.target == force.source]
+            if len(back) != 1:
+                raise HarnessError(f"{where}: {bond.component}.{output} must feed exactly one input of "
+                                   f"{force.source}, the force's source (it feeds {len(back)})")
+            found.append(back[0])
+        return force, found[0], found[1]
 
     def tolerance(self) -> float | None:
         """The position tolerance in metres the scene asks for (pixels through the camera's scale)."""

@@ -9,7 +9,7 @@ import numpy as np
 
 from harness.cosim.structure import Component, System
 from harness.errors import HarnessError
-from harness.fmi.fmu_instance import ERROR, STATUS_NAMES, FmuInstance
+from harness.fmi.fmu_instance import ERROR, STATUS_NAMES, FmuInstance, SharedFmus
 
 
 def _doubles(n: int):
@@ -21,9 +21,10 @@ class Unit:
     derivatives) at the start of the macro step; `y_next_view`/`dy_next_view` what the last read
     returned; `u_view`/`du_view` the inputs (and derivatives) the next write hands over."""
 
-    def __init__(self, component: Component, system: System):
+    def __init__(self, component: Component, system: System, fmus: SharedFmus | None = None):
         self.name = component.name
-        self.instance = FmuInstance(component.fmu, name=component.name)
+        self.instance = fmus.instance(component.fmu, component.name) if fmus is not None \
+            else FmuInstance(component.fmu, name=component.name)
         self.live_states = 0  # FMU states saved and not yet released
         try:
             self._prepare(component, system)

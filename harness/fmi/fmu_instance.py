@@ -154,12 +154,14 @@ class FmuInstance:
     """An instantiated FMU of either version (Co-Simulation by default, Model Exchange with kind="ME")."""
 
     def __init__(self, fmu: str | Path, kind: str = "CS", name: str = "instance", logging_on: bool = False,
-                 unzipdir: str | None = None):
+                 unzipdir: str | None = None, description=None):
+        """`unzipdir` and `description`: an extraction and model description shared with other
+        instances of the same FMU (`SharedFmus`); by default the instance makes its own."""
         self.path = Path(fmu)
         self.fmu = None
         self._raw: Calls | None = None
         self._items: dict[str, dict[str, int]] = {}
-        self.model_description = read_description(self.path)
+        self.model_description = description if description is not None else read_description(self.path)
         self.version = self.model_description.fmiVersion
         self._extracted = unzipdir is None  # a folder this instance made, and removes when freed
         self.unzipdir = unzipdir or str(extract_fmu(self.path, (PLATFORM_FOLDERS[self.version],)))
@@ -451,6 +453,35 @@ class IntegerReader:
 
 
 @lru_cache(maxsize=None)
+class SharedFmus:
+    """One extraction and one model description per FMU file for all the instances made through it,
+    so that instances of one FMU share one folder and one loaded library. `close()` (after the
+    instances are freed) removes the folders."""
+
+    def __init__(self):
+        self._extracted: dict[Path, tuple[str, object]] = {}
+
+    def instance(self, fmu: str | Path, name: str, kind: str = "CS") -> FmuInstance:
+        path = Path(fmu).resolve() if Path(fmu).exists() else Path(fmu)
+        if path not in self._extracted:
+            description = read_description(path)
+            folder = extract_fmu(path, (PLATFORM_FOLDERS[description.fmiVersion],))
+            self._extracted[path] = (str(folder), description)
+        unzipdir, description = self._extracted[path]
+        return FmuInstance(fmu, kind=kind, name=name, unzipdir=unzipdir, description=description)
+
+    def close(self) -> None:
+        folders, self._extracted = self._extracted, {}
+        for unzipdir, _ in folders.values():
+            shutil.rmtree(unzipdir, ignore_errors=True)
+
+    def __enter__(self) -> "SharedFmus":
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.close()
+
+
 def accepted_methods(fmu: str) -> tuple[str, ...]:
     """The integration methods an FMU accepts, in the Solver enumeration's order: every method but
     stormer_verlet where the object's mass matrix is not constant. Asked of the FMU itself (setting

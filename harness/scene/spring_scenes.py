@@ -19,6 +19,11 @@ def spring_joint(spring: str, end: str, pendulum: str, force: str = "F") -> list
            [[f"{spring}.F{end}_{axis}", f"{pendulum}.{force}_{axis}"] for axis in "xy"]
 
 
+def bob_bonds(pendulum: str, force: str = "F") -> list[list[str]]:
+    """The power bonds of a force input pair at a pendulum's bob: the force with the bob's velocity."""
+    return [[f"{pendulum}.{force}_{axis}", f"{pendulum}.v_{axis}", f"{pendulum}.{axis}"] for axis in "xy"]
+
+
 def pendulum_chain(n: int, spacing: float = 1.0, k: float = 10.0, released: int = 0, angle: float = 0.5,
                    name: str | None = None, description: str | None = None, solver: str = "rk4",
                    h: float = 0.002, stop: float = 10.0, step: float = 0.01) -> dict:
@@ -33,10 +38,12 @@ def pendulum_chain(n: int, spacing: float = 1.0, k: float = 10.0, released: int 
     springs = [f"s{i + 1:0{width}d}" for i in range(n - 1)]
     components: dict[str, dict] = {}
     connections: list[list[str]] = []
+    bonds: list[list[str]] = []
     for i, spring in enumerate(springs):
         components[spring] = {"fmu": "Spring", "start": {
             "k": k, "c": 0.0, "l0": spacing, "a_x": i * spacing, "a_y": -1.0, "b_x": (i + 1) * spacing, "b_y": -1.0}}
         connections += spring_joint(spring, "a", pendulums[i], "F2") + spring_joint(spring, "b", pendulums[i + 1], "F")
+        bonds += bob_bonds(pendulums[i], "F2") + bob_bonds(pendulums[i + 1], "F")
     for i, pendulum in enumerate(pendulums):
         components[pendulum] = {"fmu": "SimplePendulum", "start": {
             "phi": angle if i == released else 0.0, "anchor_x": i * spacing, "solver": solver, "h": h},
@@ -48,7 +55,7 @@ def pendulum_chain(n: int, spacing: float = 1.0, k: float = 10.0, released: int 
                                        f"at {angle:g} rad and its swing travels along the chain."),
         "stop": stop, "step": step, "accuracy": {"position": 0.001},
         "camera": {"scale": min(200.0, 900.0 / max(1.0, (n - 1) * spacing + 2.0)), "frame_rate": 25},
-        "components": components, "connections": connections}
+        "components": components, "connections": connections, "bonds": bonds}
 
 
 def pendulum_wave(n: int = 15, cycle: float = 60.0, first: int = 51, spacing: float = 0.1, angle: float = 0.3,
@@ -92,6 +99,8 @@ def double_and_cart() -> dict:
                                                                      ("v_y", "vy"))] + \
                   [["spring.Fa_x", "double.F_x"], ["spring.Fa_y", "double.F_y"],
                    ["spring.Fb_x", "cart.F_x"], ["spring.Fb_y", "cart.F_y"]]
+    bonds = [["double.F_x", "double.v_x", "double.x2"], ["double.F_y", "double.v_y", "double.y2"],
+             ["cart.F_x", "cart.cart_v_x", "cart.cart_x"], ["cart.F_y", "cart.cart_v_y", "cart.cart_y"]]
     return {
         "name": "double pendulum and cart",
         "description": "A double pendulum (links 1 m, anchor at the origin, released at 0.3 rad) whose tip is joined "
@@ -99,7 +108,7 @@ def double_and_cart() -> dict:
                        "below the anchor: the spring pulls the cart, the cart's own pendulum swings up.",
         "stop": 10.0, "step": 0.01, "accuracy": {"position": 0.001},
         "camera": {"scale": 150.0, "frame_rate": 25},
-        "components": components, "connections": connections}
+        "components": components, "connections": connections, "bonds": bonds}
 
 
 def repository_scenes() -> dict[str, dict]:

@@ -1,0 +1,89 @@
+#!/usr/bin/env python3
+"""Large scenes: a chain of N SimplePendulums joined by N - 1 Springs (harness.scene.spring_scenes),
+one FMU instance per component, for N = 10, 100 and 1000. Per N, measured in one run:
+
+* start-up per instance: loading, instantiating and preparing the master's units, and initializing;
+* memory per instance: the process's resident memory after start-up against before it;
+* cost per component and macro step: Gauss-Seidel, linear extrapolation, H = 0.01 (the C loop),
+  and its ratio to N = 10's (it should stay flat: the cost grows linearly with N);
+* the coupling error against the chain's derived monolithic reference, over the first seconds.
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import statistics
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parent.parent
+sys.path.insert(0, str(ROOT))
+
+from harness.cosim.master import Master, MasterOptions  # noqa: E402
+from harness.cosim.system import load_system  # noqa: E402
+from harness.fmi.fmus import build_fmus  # noqa: E402
+from harness.scene.spring_scenes import pendulum_chain  # noqa: E402
+from harness.studies.coupling import coupling_error, derived_reference  # noqa: E402
+
+STEP = 0.01
+
+
+def resident_bytes() -> int:
+    with open("/proc/self/statm") as handle:
+        return int(handle.read().split()[1]) * os.sysconf("SC_PAGE_SIZE")
+
+
+def measure(n: int, steps: int, error_seconds: float, folder: Path) -> dict:
+    scene = folder / f"chain_{n}.json"
+    scene.write_text(json.dumps(pendulum_chain(n)))
+    system = load_system(scene)
+    instances = len(system.components)
+    options = MasterOptions(stop=steps * STEP, step=STEP, algorithm="gauss-seidel", extrapolation="linear")
+    before, start = resident_bytes(), time.perf_counter()
+    with Master(system, options) as master:
+        master._initialize()
+        startup = time.perf_counter() - start
+        memory = resident_bytes() - before
+    costs = []
+    for _ in range(3):
+        with Master(system, options) as master:
+            start = time.perf_counter()
+            master.run()
+            costs.append((time.perf_counter() - start) / (steps * instances))
+    error_options = MasterOptions(stop=error_seconds, step=STEP, algorithm="gauss-seidel", extrapolation="linear")
+    with Master(system, error_options) as master:
+        result = master.run()
+    start = time.perf_counter()
+    reference, pairs = derived_reference(system, result.time)
+    reference_seconds = time.perf_counter() - start
+    return dict(n=n, instances=instances, startup=startup / instances, memory=memory / instances,
+                cost=statistics.median(costs), error=coupling_error(result, reference, pairs),
+                reference_seconds=reference_seconds)
+
+
+def main() -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--sizes", type=int, nargs="+", default=[10, 100, 1000])
+    parser.add_argument("--steps", type=int, default=1000, help="macro steps per cost measurement")
+    parser.add_argument("--error-seconds", type=float, default=2.0, help="simulated time of the error run")
+    args = parser.parse_args()
+    build_fmus()
+    with tempfile.TemporaryDirectory(prefix="chain_benchmark_") as folder:
+        rows = [measure(n, args.steps, args.error_seconds, Path(folder)) for n in args.sizes]
+    base = rows[0]["cost"]
+    print(f"Chain of N pendulums and N - 1 springs, Gauss-Seidel, linear, H = {STEP} s; costs are medians of 3 runs "
+          f"of {args.steps} macro steps")
+    print(f"{'N':>6s} {'instances':>9s} {'start-up/instance':>18s} {'memory/instance':>16s} "
+          f"{'us/(component step)':>20s} {'ratio to N=' + str(rows[0]['n']):>14s} "
+          f"{'error [m] over ' + format(args.error_seconds, 'g') + ' s':>22s} {'reference [s]':>14s}")
+    for r in rows:
+        print(f"{r['n']:6d} {r['instances']:9d} {1e3 * r['startup']:15.3f} ms {r['memory'] / 1024:13.1f} KB "
+              f"{1e6 * r['cost']:20.4f} {r['cost'] / base:14.2f} {r['error']:22.3e} {r['reference_seconds']:14.1f}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,126 @@
+"""Energy-conserving coupling over power bonds: the bonds' energy is measured consistently with the
+objects' own energies, the correction lowers the energy drift and the error against the derived
+reference, the energy step control keeps the drift within its tolerance and spends more steps for a
+tighter one, and what it needs is asked for by name."""
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+
+from harness.cli import main
+from harness.cosim.master import Master, MasterOptions, run_system
+from harness.cosim.system import load_system
+from harness.errors import HarnessError
+from harness.fmi.fmus import PROJECT_ROOT
+from harness.studies.coupling import coupling_error, derived_reference
+
+SCENES = PROJECT_ROOT / "scenes"
+
+
+def gauss_seidel(system, **options):
+    return run_system(system, MasterOptions(stop=options.pop("stop", 10.0), algorithm="gauss-seidel",
+                                            extrapolation="linear", **options))
+
+
+def test_the_receivers_side_of_a_bond_is_its_work(fmu_paths):
+    """What the bonds measure the pendulums gained is their energy change (they feel no other force),
+    step by step: the corrected trapezoid rule is exact to O(H^5)."""
+    with load_system(SCENES / "coupled_pendulums.json") as system:
+        with Master(system, MasterOptions(stop=2.0, step=0.01, algorithm="gauss-seidel", extrapolation="linear",
+                                          energy_correction=True)) as master:
+            master.interval.CAP = 0.0  # measure only: no correction
+            bonds, work, energies = master.bonds, [], []
+            measure = bonds.measure
+
+            def recording(H, start):
+                created = measure(H, start)
+                work.append(float(np.sum(bonds.gained)))
+                energies.append(sum(u.y_now[u.energy_index] for u in master.units if u.name != "spring"))
+                return created
+            bonds.measure = recording
+            result = master.run()
+    assert result.stopped_at is None and len(work) == 200
+    change = np.diff([result["left.E"][0] + result["right.E"][0]] + energies)
+    assert np.max(np.abs(np.array(work) - change)) < 1e-7
+    assert np.max(np.abs(change)) > 1e-3  # the spring did work
+
+
+@pytest.mark.parametrize("scene", ["coupled_pendulums.json", "double_and_cart.json", "spring_chain.json"])
+def test_the_correction_lowers_drift_and_error(fmu_paths, scene):
+    with load_system(SCENES / scene) as system:
+        reference = derived_reference(system, np.arange(0, 1001) * 0.01)
+        for H in (0.02, 0.01):
+            plain = gauss_seidel(system, step=H)
+            corrected = gauss_seidel(system, step=H, energy_correction=True)
+            stride = round(H / 0.01)
+            ref = ({k: v[::stride] for k, v in reference[0].items()}, reference[1])
+            assert corrected.macro_steps == plain.macro_steps
+            assert corrected.energy_residual < 0.8 * plain.energy_residual, (H, corrected.energy_residual,
+                                                                              plain.energy_residual)
+            assert coupling_error(corrected, *ref) < coupling_error(plain, *ref), H
+            # the bonds measured energy of the drift's sign: the coupling loses energy here
+            assert sum(corrected.bond_energy.values()) < 0 and plain.energy[-1] < plain.energy[0]
+
+
+def test_the_energy_control_keeps_its_tolerance_and_pays_for_a_tighter_one(fmu_paths):
+    with load_system(SCENES / "coupled_pendulums.json") as system:
+        runs = {tolerance: gauss_seidel(system, step=0.04, energy_tol=tolerance) for tolerance in (0.1, 0.01)}
+    for tolerance, result in runs.items():
+        assert result.stopped_at is None
+        assert result.energy_residual <= tolerance
+        assert len(result.time) == 251  # rows stay on the output grid
+    assert runs[0.01].macro_steps > 2 * runs[0.1].macro_steps
+    assert runs[0.01].energy_residual < runs[0.1].energy_residual / 5
+
+
+def test_the_energy_control_reaches_every_output_row_exactly(fmu_paths):
+    with load_system(SCENES / "pendulums_in_a_row.json") as system:
+        result = gauss_seidel(system, step=0.05, stop=2.0, energy_tol=0.01)
+    assert np.array_equal(result.time, np.arange(41) * 0.05)
+    assert result.macro_steps > 40
+
+
+def test_energy_options_need_bonds_and_one_step_control(fmu_paths, tmp_path, capsys):
+    out = str(tmp_path / "run.csv")
+    assert main(["run", str(SCENES / "thesis_scene.json"), "--energy-correction", "--out", out, "--quiet"]) == 2
+    assert "needs power bonds: declare \"bonds\"" in capsys.readouterr().err
+    assert main(["run", str(SCENES / "coupled_pendulums.json"), "--energy-tolerance", "0.01", "--tolerance", "0.001",
+                 "--out", out, "--quiet"]) == 2
+    assert "give one of them" in capsys.readouterr().err
+    assert main(["run", str(SCENES / "coupled_pendulums.json"), "--energy-tolerance", "0.01", "--on-discard",
+                 "retry", "--out", out, "--quiet"]) == 2
+    assert "does not combine with --on-discard retry" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize("bond, words", [
+    (["left.F_x", "left.v_y", "left.x"], None),  # a velocity the spring reads: accepted (the user's pairing)
+    (["left.F_x", "left.E", "left.x"], "left.E must feed exactly one input of spring"),
+    (["left.F2_x", "left.v_x"], "no connection feeds left.F2_x"),
+    (["left.F_x", "right.v_x"], "belong to one component"),
+    (["left.F_x"], "must be a list of two or three"),
+])
+def test_a_bond_that_is_not_one_is_refused_by_name(fmu_paths, tmp_path, capsys, bond, words):
+    scene = json.loads((SCENES / "coupled_pendulums.json").read_text())
+    scene["bonds"] = [bond]
+    path = tmp_path / "bonds.json"
+    path.write_text(json.dumps(scene))
+    status = main(["run", str(path), "--stop", "0.1", "--energy-correction", "--out", str(tmp_path / "r.csv"),
+                   "--quiet"])
+    err = capsys.readouterr().err
+    if words is None:
+        assert status == 0, err
+    else:
+        assert status == 2 and words in err and err.count("\n") == 1, err
+
+
+def test_bonds_in_a_system_built_in_code_are_checked_where_used(fmu_paths):
+    from dataclasses import replace
+
+    from harness.cosim.structure import Bond
+    with load_system(SCENES / "coupled_pendulums.json") as system:
+        broken = replace(system, bonds=[Bond("right", "F2_y", "v_y")])
+        run_system(broken, MasterOptions(stop=0.1, step=0.01))  # unused: no energy coupling asked for
+        with pytest.raises(HarnessError, match="no connection feeds right.F2_y"):
+            run_system(broken, MasterOptions(stop=0.1, step=0.01, energy_correction=True))
