@@ -214,6 +214,19 @@ def write_reference(scene, columns: list[str], times, path: Path) -> None:
             stream.write(",".join(f"{v:.17g}" for v in row) + "\n")
 
 
+def command_export(args: argparse.Namespace) -> int:
+    from harness.cosim.ssp_export import write_ssp
+    from harness.cosim.system import load_system
+    from harness.output import output_file
+    out = output_file(args.ssp, "--ssp", system_inputs(args.system), formats=(".ssp",), replaces=".ssp")
+    with load_system(args.system) as system:
+        out = output_file(out, "--ssp", component_files(args.system, system), formats=(".ssp",), replaces=".ssp")
+        write_ssp(system, out)
+    print(f"wrote {out}: {len(system.components)} components, {len(system.connections)} connections"
+          + (f", {len(system.bonds)} power bonds" if system.bonds else ""))
+    return 0
+
+
 def command_validate(args: argparse.Namespace) -> int:
     from harness.fmi.fmus import locate_fmu
     from harness.fmi.validation import validate
@@ -398,6 +411,11 @@ def build_parser() -> argparse.ArgumentParser:
                         "communication points, under the same column names, for every state and output it determines")
     p.add_argument("--quiet", action="store_true", help="no progress lines")
     p.set_defaults(run=command_run)
+
+    p = sub.add_parser("export", help="write a system (scene .json or SSP) as an SSP 1.0 archive for other importers")
+    p.add_argument("system", help="a scene .json, an .ssp archive, an .ssd file or a folder with SystemStructure.ssd")
+    p.add_argument("--ssp", required=True, metavar="FILE.ssp", help="the archive to write")
+    p.set_defaults(run=command_export)
 
     p = sub.add_parser("validate", help="check FMUs: fmpy validation, runtime conformance, physics and numerics")
     p.add_argument("fmu", nargs="+", help=".fmu files or the project's FMU names")

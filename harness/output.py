@@ -25,11 +25,14 @@ PICTURE_FORMATS = (".png", ".svg", ".pdf")
 
 
 def output_file(text: str | Path, option: str, inputs: tuple[str | Path | None, ...] = (),
-                formats: tuple[str, ...] | None = None, outputs: dict[str, Path] | None = None) -> Path:
+                formats: tuple[str, ...] | None = None, outputs: dict[str, Path] | None = None,
+                replaces: str | None = None) -> Path:
     """The path of a file to write, refused at once if it cannot be one: a folder, a device, a parent
     that is a file, one of the command's inputs or a file inside an input folder, another output of
     the same command (`outputs`, by option), or (with `formats`) a name without one of those
-    suffixes. A symbolic link is written through: the file it names is replaced, the link stays."""
+    suffixes. A symbolic link is written through: the file it names is replaced, the link stays. An
+    existing input-like file (.fmu, .ssp, ...) is only replaced by the command that makes that kind
+    (`replaces`: its suffix)."""
     path = Path(text)
     if str(text) == "" or path.name in ("", ".", ".."):
         raise HarnessError(f"{option} {str(text)!r}: names no file")
@@ -52,7 +55,8 @@ def output_file(text: str | Path, option: str, inputs: tuple[str | Path | None, 
     for other, taken in (outputs or {}).items():
         if target == _resolved(Path(taken), other):
             raise HarnessError(f"{option} {path}: is already the {other} file; choose another file")
-    if path.suffix.lower() in (".fmu", ".ssp", ".ssd", ".json", ".toml") and path.exists():
+    if path.suffix.lower() in (".fmu", ".ssp", ".ssd", ".json", ".toml") and path.exists() \
+            and path.suffix.lower() != replaces:
         raise HarnessError(f"{option} {path}: is an existing {path.suffix} input file; choose another file")
     _check_parents(path, option)
     return path

@@ -1,5 +1,6 @@
-"""The coupled-pendulums scene and each FMU alone in three independent importers: libcosim and ecos
-(PyPI) and Maestro (Maven Central). All three couple by Jacobi with a one-step delay, i.e. inputs
+"""The spring scenes (the coupled pendulums as the build packs them, the others written by
+`harness export`) and each FMU alone in three independent importers: libcosim and ecos (PyPI) and
+Maestro (Maven Central). All three couple by Jacobi with a one-step delay, i.e. inputs
 held from the previous communication point: with the harness set to the same semantics
 (--algorithm jacobi --extrapolation hold) the results agree to rounding."""
 from __future__ import annotations
@@ -18,7 +19,7 @@ import pytest
 
 from harness.cosim.master import MasterOptions, run_system
 from harness.cosim.system import load_system
-from harness.fmi.fmus import build_dir
+from harness.fmi.fmus import PROJECT_ROOT, build_dir
 
 PEERS = Path(__file__).parent / "peers"
 STEP, STEPS = 0.01, 200
@@ -36,30 +37,79 @@ def run_peer(script: str, *args: str) -> np.ndarray:
     return np.array(json.loads(line))
 
 
+EXPORTED = ("pendulums_in_a_row", "double_and_cart", "spring_chain")  # written by `harness export`
+SCENES = ("coupled_pendulums", *EXPORTED)
+
+
 @pytest.fixture(scope="module")
-def harness_rows(fmu_paths) -> np.ndarray:
-    system = load_system(build_dir() / "scenes" / "coupled_pendulums.ssp")
-    result = run_system(system, MasterOptions(stop=STEP * STEPS, step=STEP, algorithm="jacobi", extrapolation="hold"))
-    table = np.column_stack([result["left.x"], result["left.y"], result["right.x"], result["right.y"]])
-    return table[1:]  # the importers report after each step
+def archives(fmu_paths, tmp_path_factory) -> dict[str, Path]:
+    """The coupled scene's SSP as the build packs it, and the other spring scenes exported."""
+    from harness.cosim.ssp_export import write_ssp
+    folder = tmp_path_factory.mktemp("exported")
+    out = {"coupled_pendulums": build_dir() / "scenes" / "coupled_pendulums.ssp"}
+    for name in EXPORTED:
+        with load_system(PROJECT_ROOT / "scenes" / f"{name}.json") as system:
+            write_ssp(system, folder / f"{name}.ssp")
+        out[name] = folder / f"{name}.ssp"
+    return out
 
 
-def test_libcosim_agrees_with_the_harness(harness_rows):
+def recorded_points(system) -> list[str]:
+    """Every object point's position outputs, `component.variable`."""
+    from harness.objects.proof import object_file_in
+    names = []
+    for component in system.components:
+        spec = object_file_in(component.fmu)
+        for point in spec.points if spec is not None else ():
+            names += [f"{component.name}.{point.outputs[axis]}" for axis in ("x", "y") if axis in point.outputs]
+    return names
+
+
+def state_starts(system) -> dict[str, dict[str, float]]:
+    """The bound start values of states (causality output), which libcosim's SSP loader skips."""
+    from harness.fmi.fmu_instance import read_description
+    starts = {}
+    for component in system.components:
+        outputs = {v.name for v in read_description(component.fmu).modelVariables if v.causality == "output"}
+        chosen = {k: float(v) for k, v in component.start.items() if k in outputs}
+        if chosen:
+            starts[component.name] = chosen
+    return starts
+
+
+@pytest.fixture(scope="module")
+def harness_rows(archives) -> dict[str, tuple[list[str], dict, np.ndarray]]:
+    """Per scene: the recorded outputs, the state starts and the harness's rows (Jacobi, inputs held)."""
+    out = {}
+    for name, archive in archives.items():
+        with load_system(archive) as system:
+            recorded = recorded_points(system)
+            result = run_system(system, MasterOptions(stop=STEP * STEPS, step=STEP, algorithm="jacobi",
+                                                      extrapolation="hold"))
+            # the importers report after each step
+            out[name] = (recorded, state_starts(system), np.column_stack([result[n] for n in recorded])[1:])
+    return out
+
+
+@pytest.mark.parametrize("scene", SCENES)
+def test_libcosim_agrees_with_the_harness(archives, harness_rows, scene):
     pytest.importorskip("libcosimpy")
-    rows = run_peer("run_libcosim.py", str(build_dir() / "scenes" / "coupled_pendulums.ssp"), str(STEP), str(STEPS),
-                    json.dumps({"left": 0.5, "right": 0.0}))
-    assert rows.shape == harness_rows.shape
-    assert np.max(np.abs(rows - harness_rows)) < 1e-12
+    recorded, starts, expected = harness_rows[scene]
+    rows = run_peer("run_libcosim.py", str(archives[scene]), str(STEP), str(STEPS), json.dumps(starts), *recorded)
+    assert rows.shape == expected.shape
+    assert np.ptp(expected, axis=0).max() > 1e-3  # the scene moves
+    assert np.max(np.abs(rows - expected)) < 1e-12
 
 
-def test_ecos_agrees_with_the_harness(harness_rows):
+@pytest.mark.parametrize("scene", SCENES)
+def test_ecos_agrees_with_the_harness(archives, harness_rows, scene):
     pytest.importorskip("ecospy")
     if ctypes.util.find_library("tbb") is None:
         pytest.skip("ecos needs Debian's libtbb12, which is not installed (./run installs it when run as root)")
-    rows = run_peer("run_ecos.py", str(build_dir() / "scenes" / "coupled_pendulums.ssp"), str(STEP), str(STEPS),
-                    "initialValues")
-    assert rows.shape == harness_rows.shape
-    assert np.max(np.abs(rows - harness_rows)) < 1e-12
+    recorded, _, expected = harness_rows[scene]
+    rows = run_peer("run_ecos.py", str(archives[scene]), str(STEP), str(STEPS), "initialValues", *recorded)
+    assert rows.shape == expected.shape
+    assert np.max(np.abs(rows - expected)) < 1e-12
 
 
 @pytest.fixture(scope="module")
@@ -77,17 +127,16 @@ def maestro() -> str:
     return str(jar)
 
 
-@pytest.mark.parametrize("scene", ["coupled_pendulums.json", "coupled_pendulums.ssp"])
-def test_maestro_agrees_with_the_harness(maestro, harness_rows, tmp_path, scene):
-    """The scene file (project FMUs by name) and the SSP, each run from a MaBL specification; the
+@pytest.mark.parametrize("scene", ["coupled_pendulums.json", *SCENES])
+def test_maestro_agrees_with_the_harness(maestro, archives, harness_rows, tmp_path, scene):
+    """The scene file (project FMUs by name) and the SSPs, each run from a MaBL specification; the
     first column is the worst fmi2 status Maestro saw up to that step."""
-    source = (Path(__file__).parents[1] / "scenes" / scene if scene.endswith(".json")
-              else build_dir() / "scenes" / scene)
-    rows = run_peer("run_maestro.py", maestro, str(source), str(STEP), str(STEPS), "{}", str(tmp_path),
-                    "left.x", "left.y", "right.x", "right.y")
+    source = PROJECT_ROOT / "scenes" / scene if scene.endswith(".json") else archives[scene]
+    recorded, _, expected = harness_rows[scene.removesuffix(".json")]
+    rows = run_peer("run_maestro.py", maestro, str(source), str(STEP), str(STEPS), "{}", str(tmp_path), *recorded)
     assert np.all(rows[:, 0] == 0)
-    assert rows[:, 1:].shape == harness_rows.shape
-    assert np.max(np.abs(rows[:, 1:] - harness_rows)) < 1e-12
+    assert rows[:, 1:].shape == expected.shape
+    assert np.max(np.abs(rows[:, 1:] - expected)) < 1e-12
 
 
 OUTPUTS = {"SimplePendulum": ["phi", "x", "y", "E_kin"], "DoublePendulum": ["phi1", "phi2", "x2", "y2"],

@@ -31,7 +31,7 @@ from harness.cosim.energy import BondedStep, EnergyStepControl, PowerBonds, orde
 from harness.cosim.controls import Iteration, RetryOnDiscard, StepDoubling, Stepper, Tally
 from harness.cosim.native_core import NativeLoop, load_core
 from harness.cosim.structure import System
-from harness.cosim.unit import Unit
+from harness.cosim.unit import Arena, Unit
 from harness.errors import HarnessError, where
 from harness.fmi.fmu_instance import DISCARD, ERROR, OK, STATUS_NAMES, SharedFmus
 from harness.fmi.results import TimeTable
@@ -103,10 +103,11 @@ class Master:
         self.system, self.options = system, options
         self.units: list[Unit] = []
         self.fmus = SharedFmus()  # instances of one FMU share its extraction and its loaded library
+        arena = Arena()  # and the units' buffers lie side by side
         try:  # whatever fails while setting up, the instances made so far are freed
             with where(system.origin, system.workspace):
                 for component in system.components:
-                    self.units.append(Unit(component, system, self.fmus))
+                    self.units.append(Unit(component, system, self.fmus, arena))
                 self.options = dataclasses.replace(options, extrapolation=self._extrapolation(options))
                 self.exchange = Exchange(self.units, self.options.extrapolation == "linear")
                 self._check_states(options)

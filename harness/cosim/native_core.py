@@ -43,12 +43,15 @@ class NativeLoop:
         self.core = core
         index = {unit.name: k for k, unit in enumerate(units)}
         self.structs = (CoreUnit * len(units))()
-        self._keep = []  # arrays the structs point into
+        # per input: the unit that feeds it and that unit's output, all units' side by side
+        routes = np.array([(index[c.source], units[index[c.source]].real_outputs.index(c.output))
+                           for unit in units for c in unit.inputs] or [(0, 0)], dtype=np.intc).reshape(-1, 2)
+        self._keep = [routes.T.copy()]  # arrays the structs point into
+        first = 0
         for struct, unit in zip(self.structs, units):
-            sources = np.array([index[c.source] for c in unit.inputs] or [0], dtype=np.intc)
-            positions = np.array([units[index[c.source]].real_outputs.index(c.output) for c in unit.inputs]
-                                 or [0], dtype=np.intc)
-            self._keep += [sources, positions]
+            sources = self._keep[0][0, first:]
+            positions = self._keep[0][1, first:]
+            first += unit.n_in
             fill_calls(struct.calls, unit.instance.raw, unit.integers)
             struct.int_vrs = unit.integers.vrs
             struct.n_out, struct.n_in, struct.n_int = unit.n_out, unit.n_in, unit.n_int

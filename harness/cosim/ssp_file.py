@@ -17,7 +17,7 @@ import zipfile
 from pathlib import Path, PurePosixPath
 
 from harness.archives import MAX_BYTES, MAX_READ, extract_members, name_problem, open_archive, read_member
-from harness.cosim.structure import Component, Connection, System
+from harness.cosim.structure import Bond, Component, Connection, System
 from harness.errors import HarnessError, first_problem
 from harness.fmi.fmu_instance import read_description
 
@@ -158,6 +158,32 @@ def _refuse_transformations(root: ET.Element, what: str) -> None:
                                    "which is not supported")
 
 
+def _bonds(root: ET.Element, what: str) -> list[Bond]:
+    """Power bonds from the system's annotation (`harness.cosim.ssp_export`); none without it."""
+    from harness.cosim.ssp_export import BONDS_ANNOTATION
+    bonds = []
+    for annotation in root.iter():
+        if not (annotation.tag.endswith("}Annotation") and annotation.get("type") == BONDS_ANNOTATION):
+            continue
+        for bond in (entry for holder in annotation for entry in holder):
+            names = [bond.get(key) for key in ("component", "force", "velocity")]
+            if bond.tag != "Bond" or not all(names):
+                raise HarnessError(f"{what}: annotation {BONDS_ANNOTATION}: each entry is a Bond with component, "
+                                   "force and velocity (and optionally position)")
+            bonds.append(Bond(*names, bond.get("position")))
+    return bonds
+
+
+def _annotated_step(root: ET.Element, what: str) -> float | None:
+    """The communication step a system exported by this harness carries in an annotation."""
+    from harness.cosim.ssp_export import STEP_ANNOTATION
+    for annotation in root.iter():
+        if annotation.tag.endswith("}Annotation") and annotation.get("type") == STEP_ANNOTATION:
+            for step in annotation:
+                return _number(step.get("stepSize"), f"{what}: annotation {STEP_ANNOTATION} stepSize")
+    return None
+
+
 def _experiment(root: ET.Element, what: str) -> float | None:
     """stopTime of the SSD's DefaultExperiment (fmpy's reader does not keep it)."""
     for element in root:
@@ -221,6 +247,7 @@ def load_ssp(path: Path) -> System:
         ssd = read_ssd(_in_memory_ssd(files))
         ssd_root = ET.fromstring(files[SSD])
         stop = _experiment(ssd_root, what)
+        bonds = _bonds(ssd_root, what)
         _refuse_transformations(ssd_root, what)
         for component in ssd_root.iter():  # read from the XML: fmpy's reader does not keep it
             if component.tag.endswith("}Component") and component.get("implementation") not in (None, "any",
@@ -271,11 +298,12 @@ def load_ssp(path: Path) -> System:
             components.append(Component(element.name, fmu, start))
         connections = [Connection(c.startElement, c.startConnector, c.endElement, c.endConnector)
                        for c in system.connections]
-        step = None
+        step = _annotated_step(ssd_root, what)
         info = getattr(system, "simulationInformation", None)
         if info is not None and getattr(info, "fixedStepMaster", None) is not None:
             step = _number(info.fixedStepMaster.stepSize, f"{what}: FixedStepMaster stepSize")
-        return System(ssd.name or path.stem, components, connections, stop, step, workspace=workspace, origin=what)
+        return System(ssd.name or path.stem, components, connections, stop, step, workspace=workspace, origin=what,
+                      bonds=bonds)
     except BaseException:
         if workspace is not None:
             shutil.rmtree(workspace, ignore_errors=True)

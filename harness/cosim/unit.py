@@ -12,8 +12,48 @@ from harness.errors import HarnessError
 from harness.fmi.fmu_instance import ERROR, STATUS_NAMES, FmuInstance, SharedFmus
 
 
-def _doubles(n: int):
-    return (ctypes.c_double * max(n, 1))()
+class Arena:
+    """The float buffers of many units carved one after another from shared blocks, so that a loop
+    over a thousand units walks contiguous memory instead of a thousand scattered allocations."""
+
+    BLOCK = 1 << 16  # items
+
+    def __init__(self):
+        self._blocks: dict[type, list[np.ndarray]] = {}
+        self._free: dict[type, int] = {}
+
+    def _take(self, kind, n: int):
+        """A zeroed ctypes array of n (at least one) items of the ctypes type `kind`."""
+        n = max(n, 1)
+        blocks = self._blocks.setdefault(kind, [])
+        if not blocks or self._free[kind] + n > len(blocks[-1]):
+            blocks.append(np.zeros(max(self.BLOCK, n), dtype=np.dtype(kind)))
+            self._free[kind] = 0
+        view = blocks[-1][self._free[kind]:self._free[kind] + n]
+        self._free[kind] += n
+        return (kind * n).from_buffer(view)
+
+    def doubles(self, n: int):
+        return self._take(ctypes.c_double, n)
+
+    def array(self, kind, values: list[int]):
+        """A ctypes array of `kind` (an integer type) holding values."""
+        array = self._take(kind, len(values))
+        for i, value in enumerate(values):
+            array[i] = value
+        return array
+
+
+class _Scattered:
+    """Buffers allocated one by one (a unit made outside a master)."""
+
+    @staticmethod
+    def doubles(n: int):
+        return (ctypes.c_double * max(n, 1))()
+
+    @staticmethod
+    def array(kind, values: list[int]):
+        return (kind * max(len(values), 1))(*values)
 
 
 class Unit:
@@ -21,8 +61,10 @@ class Unit:
     derivatives) at the start of the macro step; `y_next_view`/`dy_next_view` what the last read
     returned; `u_view`/`du_view` the inputs (and derivatives) the next write hands over."""
 
-    def __init__(self, component: Component, system: System, fmus: SharedFmus | None = None):
+    def __init__(self, component: Component, system: System, fmus: SharedFmus | None = None,
+                 arena: Arena | None = None):
         self.name = component.name
+        self._arena = arena if arena is not None else _Scattered()
         self.instance = fmus.instance(component.fmu, component.name) if fmus is not None \
             else FmuInstance(component.fmu, name=component.name)
         self.live_states = 0  # FMU states saved and not yet released
@@ -43,12 +85,16 @@ class Unit:
             if variable is None or variable.causality != "input":
                 raise HarnessError(f"connection {c}: {self.name} has no input {c.input!r}")
         n_out, n_in, n_int = len(self.real_outputs), len(self.inputs), len(self.integer_outputs)
-        self.out_vrs = (ctypes.c_uint * max(n_out, 1))(*[self.instance.reference(n) for n in self.real_outputs])
-        self.in_vrs = (ctypes.c_uint * max(n_in, 1))(*[self.instance.reference(c.input) for c in self.inputs])
-        self.orders_out = (ctypes.c_int * max(n_out, 1))(*([1] * n_out))
-        self.orders_in = (ctypes.c_int * max(n_in, 1))(*([1] * n_in))
-        self.y_next, self.dy_next = _doubles(n_out), _doubles(n_out)  # after this unit's step
-        self.u, self.du = _doubles(n_in), _doubles(n_in)
+        arena = self._arena
+        self.out_vrs = arena.array(ctypes.c_uint, [self.instance.reference(n) for n in self.real_outputs])
+        self.in_vrs = arena.array(ctypes.c_uint, [self.instance.reference(c.input) for c in self.inputs])
+        self.orders_out = arena.array(ctypes.c_int, [1] * n_out)
+        self.orders_in = arena.array(ctypes.c_int, [1] * n_in)
+        doubles = arena.doubles
+        # the buffers the loops touch every step, side by side: outputs now and next, their derivatives, inputs
+        y_now, dy_now = doubles(n_out), doubles(n_out)
+        self.y_next, self.dy_next = doubles(n_out), doubles(n_out)  # after this unit's step
+        self.u, self.du = doubles(n_in), doubles(n_in)
         self.integers = self.instance.integer_reader(self.integer_outputs)
         self.ints = np.zeros(max(n_int, 1), dtype=self.integers.dtype)
         self.n_out, self.n_in, self.n_int = n_out, n_in, n_int
@@ -57,8 +103,8 @@ class Unit:
         self.dy_next_view = np.ctypeslib.as_array(self.dy_next)[:n_out]
         self.u_view = np.ctypeslib.as_array(self.u)[:n_in]
         self.du_view = np.ctypeslib.as_array(self.du)[:n_in]
-        self.y_now = np.zeros(n_out)
-        self.dy_now = np.zeros(n_out)
+        self.y_now = np.ctypeslib.as_array(y_now)[:n_out]  # outputs at the start of the macro step
+        self.dy_now = np.ctypeslib.as_array(dy_now)[:n_out]
         raw = self.instance.raw
         self.component = raw.component
         self.set_real, self.get_real, self.do_step = raw.set_real, raw.get_real, raw.do_step

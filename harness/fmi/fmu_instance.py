@@ -154,9 +154,11 @@ class FmuInstance:
     """An instantiated FMU of either version (Co-Simulation by default, Model Exchange with kind="ME")."""
 
     def __init__(self, fmu: str | Path, kind: str = "CS", name: str = "instance", logging_on: bool = False,
-                 unzipdir: str | None = None, description=None):
-        """`unzipdir` and `description`: an extraction and model description shared with other
-        instances of the same FMU (`SharedFmus`); by default the instance makes its own."""
+                 unzipdir: str | None = None, description=None, template: "FmuInstance | None" = None):
+        """`unzipdir`, `description` and `template` (an instance of the same FMU and kind, whose loaded
+        library and function table this one shares): what `SharedFmus` hands each further instance of
+        an FMU; by default the instance makes its own."""
+        self._template = template
         self.path = Path(fmu)
         self.fmu = None
         self._raw: Calls | None = None
@@ -193,10 +195,14 @@ class FmuInstance:
         fmi3 = self.version == "3.0"
         cls = {(False, "CS"): FMU2Slave, (False, "ME"): FMU2Model, (True, "CS"): FMU3Slave, (True, "ME"): FMU3Model}
         try:
-            fmu = cls[fmi3, kind](guid=self.model_description.guid, unzipDirectory=self.unzipdir,
-                                  modelIdentifier=interface.modelIdentifier, instanceName=name)
+            if self._template is not None and self._template.kind == kind:
+                fmu = _sharing(self._template.loaded, str(library), name)
+            else:
+                fmu = cls[fmi3, kind](guid=self.model_description.guid, unzipDirectory=self.unzipdir,
+                                      modelIdentifier=interface.modelIdentifier, instanceName=name)
         except Exception as error:  # fmpy raises plain exceptions when the binary cannot be loaded
             raise HarnessError(f"{self.path}: cannot load {library.name} ({first_problem(error)})") from None
+        self.loaded = fmu  # what a further instance of this FMU may share (`template`)
         try:
             if fmi3:
                 fmu.instantiate(loggingOn=logging_on, logMessage=self.log.fmi3_log_message)
@@ -453,6 +459,18 @@ class IntegerReader:
 
 
 @lru_cache(maxsize=None)
+def _sharing(loaded, library: str, name: str):
+    """A new fmpy FMU object that shares `loaded`'s library and function table (fmpy builds the
+    table by reflection, some milliseconds per instance). It takes one more reference to the
+    library (the same handle: loaded once), which its freeInstance releases."""
+    import copy
+    fmu = copy.copy(loaded)
+    fmu.library_reference = ctypes.CDLL(library)
+    fmu.instanceName = name
+    fmu.component = None
+    return fmu
+
+
 class SharedFmus:
     """One extraction and one model description per FMU file for all the instances made through it,
     so that instances of one FMU share one folder and one loaded library. `close()` (after the
@@ -460,6 +478,7 @@ class SharedFmus:
 
     def __init__(self):
         self._extracted: dict[Path, tuple[str, object]] = {}
+        self._templates: dict[tuple[Path, str], FmuInstance] = {}
 
     def instance(self, fmu: str | Path, name: str, kind: str = "CS") -> FmuInstance:
         path = Path(fmu).resolve() if Path(fmu).exists() else Path(fmu)
@@ -468,9 +487,13 @@ class SharedFmus:
             folder = extract_fmu(path, (PLATFORM_FOLDERS[description.fmiVersion],))
             self._extracted[path] = (str(folder), description)
         unzipdir, description = self._extracted[path]
-        return FmuInstance(fmu, kind=kind, name=name, unzipdir=unzipdir, description=description)
+        instance = FmuInstance(fmu, kind=kind, name=name, unzipdir=unzipdir, description=description,
+                               template=self._templates.get((path, kind)))
+        self._templates.setdefault((path, kind), instance)
+        return instance
 
     def close(self) -> None:
+        self._templates = {}
         folders, self._extracted = self._extracted, {}
         for unzipdir, _ in folders.values():
             shutil.rmtree(unzipdir, ignore_errors=True)

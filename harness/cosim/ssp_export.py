@@ -1,0 +1,137 @@
+"""Any system written back as an SSP 1.0 archive (`harness export SCENE --ssp FILE`), so that other
+importers (libcosim, ecos, Maestro) run the same scene: `SystemStructure.ssd` and every FMU the
+system uses under `resources/`.
+
+* A component's start values become an inline parameter set named "initialValues": floats as Real,
+  enumeration items as Integer with the item's value (every importer here takes that; not all of
+  them read items by name), other integers as Integer, Booleans as Boolean.
+* Connectors: every variable a connection uses, inputs and outputs, typed Real.
+* The stop time goes into DefaultExperiment. The communication step and the power bonds, for which
+  SSP 1.0 has no element, go into annotations of the system ("org.pendulum-harness.step" and
+  "org.pendulum-harness.bonds"), which `load_ssp` reads back and other importers ignore.
+"""
+from __future__ import annotations
+
+import io
+import zipfile
+import xml.etree.ElementTree as ET
+from pathlib import Path
+
+from harness.cosim.structure import System
+from harness.errors import HarnessError
+from harness.fmi.fmu_instance import read_description
+
+SSD_NS = "http://ssp-standard.org/SSP1/SystemStructureDescription"
+SSC_NS = "http://ssp-standard.org/SSP1/SystemStructureCommon"
+SSV_NS = "http://ssp-standard.org/SSP1/SystemStructureParameterValues"
+BONDS_ANNOTATION = "org.pendulum-harness.bonds"
+STEP_ANNOTATION = "org.pendulum-harness.step"
+FMU_TYPE = "application/x-fmu-sharedlibrary"
+
+
+def _tag(namespace: str, name: str) -> str:
+    return f"{{{namespace}}}{name}"
+
+
+def _value_element(variable, value, where: str) -> ET.Element:
+    """The ssv element holding one start value in the variable's type."""
+    kind = variable.type
+    if kind in ("Real", "Float64", "Float32"):
+        return ET.Element(_tag(SSV_NS, "Real"), value=repr(float(value)))
+    if kind == "Enumeration":
+        if isinstance(value, str):
+            items = {item.name: item.value for item in variable.declaredType.items}
+            if value not in items:
+                raise HarnessError(f"{where} = {value!r} is not one of {', '.join(items)}")
+            value = items[value]
+        return ET.Element(_tag(SSV_NS, "Integer"), value=str(int(value)))
+    if kind == "Boolean":
+        text = str(value).strip().lower()
+        return ET.Element(_tag(SSV_NS, "Boolean"), value="true" if text in ("1", "true", "1.0") else "false")
+    if kind in ("Integer",) or kind.startswith(("Int", "UInt")):
+        return ET.Element(_tag(SSV_NS, "Integer"), value=str(int(float(value))))
+    return ET.Element(_tag(SSV_NS, "String"), value=str(value))
+
+
+def system_structure(system: System, sources: dict[str, str]) -> bytes:
+    """The SSD text of `system`, each component's FMU named by `sources` (archive member)."""
+    ET.register_namespace("ssd", SSD_NS)
+    ET.register_namespace("ssc", SSC_NS)
+    ET.register_namespace("ssv", SSV_NS)
+    root = ET.Element(_tag(SSD_NS, "SystemStructureDescription"), version="1.0", name=system.name)
+    element = ET.SubElement(root, _tag(SSD_NS, "System"), name=system.name)
+    elements = ET.SubElement(element, _tag(SSD_NS, "Elements"))
+    used: dict[str, dict[str, str]] = {c.name: {} for c in system.components}
+    for c in system.connections:
+        used[c.source][c.output] = "output"
+        used[c.target][c.input] = "input"
+    for component in system.components:
+        description = read_description(component.fmu)
+        variables = {v.name: v for v in description.modelVariables}
+        node = ET.SubElement(elements, _tag(SSD_NS, "Component"), name=component.name,
+                             source=sources[component.name], type=FMU_TYPE)
+        if used[component.name]:  # an empty Connectors element is not allowed
+            connectors = ET.SubElement(node, _tag(SSD_NS, "Connectors"))
+            for name, kind in sorted(used[component.name].items(), key=lambda item: (item[1], item[0])):
+                connector = ET.SubElement(connectors, _tag(SSD_NS, "Connector"), name=name, kind=kind)
+                ET.SubElement(connector, _tag(SSC_NS, "Real"))
+        if component.start:
+            bindings = ET.SubElement(node, _tag(SSD_NS, "ParameterBindings"))
+            values = ET.SubElement(ET.SubElement(bindings, _tag(SSD_NS, "ParameterBinding")),
+                                   _tag(SSD_NS, "ParameterValues"))
+            parameters = ET.SubElement(ET.SubElement(values, _tag(SSV_NS, "ParameterSet"), version="1.0",
+                                                     name="initialValues"), _tag(SSV_NS, "Parameters"))
+            for name, value in component.start.items():
+                where = f"{system.name}: {component.name}.{name}"
+                if name not in variables:
+                    raise HarnessError(f"{where}: {Path(component.fmu).name} has no such variable")
+                parameter = ET.SubElement(parameters, _tag(SSV_NS, "Parameter"), name=name)
+                parameter.append(_value_element(variables[name], value, where))
+    connections = ET.SubElement(element, _tag(SSD_NS, "Connections")) if system.connections else None
+    for c in system.connections:
+        ET.SubElement(connections, _tag(SSD_NS, "Connection"), startElement=c.source, startConnector=c.output,
+                      endElement=c.target, endConnector=c.input)
+    if system.bonds or system.step is not None:
+        annotations = ET.SubElement(element, _tag(SSD_NS, "Annotations"))  # holds ssc:Annotation elements
+        if system.step is not None:
+            ET.SubElement(annotations, _tag(SSC_NS, "Annotation"), type=STEP_ANNOTATION).append(
+                ET.Element("Step", stepSize=repr(float(system.step))))
+        if system.bonds:
+            annotation = ET.SubElement(ET.SubElement(annotations, _tag(SSC_NS, "Annotation"), type=BONDS_ANNOTATION),
+                                       "Bonds")  # an annotation holds one element
+            for bond in system.bonds:
+                attributes = {"component": bond.component, "force": bond.force, "velocity": bond.velocity}
+                if bond.position is not None:
+                    attributes["position"] = bond.position
+                ET.SubElement(annotation, "Bond", attributes)
+    if system.stop is not None:
+        ET.SubElement(root, _tag(SSD_NS, "DefaultExperiment"), startTime="0", stopTime=repr(float(system.stop)))
+    ET.indent(root)
+    return b'<?xml version="1.0" encoding="UTF-8"?>\n' + ET.tostring(root, encoding="utf-8")
+
+
+def write_ssp(system: System, path: Path) -> None:
+    """The archive: the SSD and each FMU the system uses once, as resources/<file name> (FMUs of
+    one name from different folders get a number)."""
+    from harness.output import written
+    sources: dict[str, str] = {}
+    members: dict[str, Path] = {}
+    for component in system.components:
+        fmu = Path(component.fmu).resolve()
+        member = next((m for m, p in members.items() if p == fmu), None)
+        if member is None:
+            member = f"resources/{fmu.name}"
+            count = 1
+            while member in members:
+                count += 1
+                member = f"resources/{fmu.stem}_{count}{fmu.suffix}"
+            members[member] = fmu
+        sources[component.name] = member
+    ssd = system_structure(system, sources)
+    buffer = io.BytesIO()  # the archive is made whole, then replaces the file at once
+    with zipfile.ZipFile(buffer, "w", zipfile.ZIP_DEFLATED) as archive:
+        archive.writestr("SystemStructure.ssd", ssd)
+        for member, fmu in members.items():
+            archive.write(fmu, member)
+    with written(path, binary=True) as stream:
+        stream.write(buffer.getvalue())
