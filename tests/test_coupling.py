@@ -108,3 +108,16 @@ def test_a_scene_without_a_derived_reference_is_refused_by_what_differs(fmu_path
         assert main(command) == 2, command
         err = capsys.readouterr().err
         assert named in err and err.count("\n") == 1, err
+
+
+def test_the_coupling_sweep_runs_on_dask_as_in_processes(fmu_paths):
+    """The same items on a Dask LocalCluster give the same errors and costs (timings aside)."""
+    pytest.importorskip("distributed")
+    from harness.studies.coupling import coupling_sweep
+    system = load_system(PROJECT_ROOT / "scenes" / "pendulums_in_a_row.json")
+    kwargs = dict(stop=0.5, steps=(0.02, 0.01), configurations=(("gauss-seidel", "linear", None),), repeats=1)
+    on_dask = coupling_sweep(system, scheduler="local", workers=2, **kwargs)
+    in_processes = coupling_sweep(system, workers=2, **kwargs)
+    assert [(p.step, p.error, p.rhs_evals, p.do_steps) for p in on_dask] == \
+        [(p.step, p.error, p.rhs_evals, p.do_steps) for p in in_processes]
+    assert all(0 < p.error < 1e-2 for p in on_dask)

@@ -4,6 +4,7 @@ pendulums' and the spring's equations combined by hand and integrated by scipy a
 from __future__ import annotations
 
 import dataclasses
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -191,3 +192,27 @@ def test_ssp_parameter_values_from_an_ssv_file(fmu_paths, tmp_path):
     assert system.component("spring").start == {"k": 25.0, "l0": 1.5}
     result = run_system(system, MasterOptions(stop=0.1, step=0.05))
     assert result.stopped_at is None
+
+
+def test_instances_of_one_fmu_share_one_extraction_and_one_library(fmu_paths, tmp_path):
+    """A chain of 20 pendulums and 19 springs: while it runs, the process maps each FMU's library once
+    and the master has extracted each FMU once; after it, the extractions are gone."""
+    import json
+    import tempfile
+
+    from harness.cosim.master import Master
+    from harness.scene.spring_scenes import pendulum_chain
+    scene = tmp_path / "chain.json"
+    scene.write_text(json.dumps(pendulum_chain(20)))
+    system = load_system(scene)
+    before = set(Path(tempfile.gettempdir()).glob("fmu_*"))
+    with Master(system, MasterOptions(stop=0.1, step=0.01)) as master:
+        extracted = set(Path(tempfile.gettempdir()).glob("fmu_*")) - before
+        assert len(extracted) == 2  # SimplePendulum and Spring
+        maps = Path("/proc/self/maps").read_text().splitlines()
+        for library in ("SimplePendulum.so", "Spring.so"):
+            paths = {line.split()[-1] for line in maps if line.endswith(library)}
+            assert len(paths) == 1, paths
+        result = master.run()
+        assert result.stopped_at is None and len(master.units) == 39
+    assert not any(path.exists() for path in extracted)
