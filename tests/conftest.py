@@ -19,23 +19,6 @@ def pytest_configure(config) -> None:
                                                       build_dir() / "compatibility.md"), "compatibility-record")
 
 
-def pytest_collection_finish(session) -> None:
-    """The sanitized suite takes minutes of its own: it starts as soon as it is selected, beside
-    the rest of the session (tests/test_memory_safety.py)."""
-    if any("test_suite_runs_clean_under_address_and_undefined_behaviour_sanitizers" in item.nodeid
-           for item in session.items):
-        from test_memory_safety import SANITIZED
-        if SANITIZED.outcome is None and not SANITIZED.thread.is_alive():
-            SANITIZED.start()
-
-
-def pytest_sessionfinish(session) -> None:
-    import sys
-    module = sys.modules.get("test_memory_safety")
-    if module is not None and module.SANITIZED.thread.is_alive():
-        module.SANITIZED.stop()  # an interrupted or failed session leaves no build running
-
-
 @pytest.fixture
 def compatibility(request) -> Row:
     """The compatibility row the test's marker declares: report each FMU it agrees on."""

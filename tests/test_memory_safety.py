@@ -1,16 +1,13 @@
 """Memory safety of the FMUs: the behaviour, robustness, numerics, master, FMI 3.0, Jacobian, symmetric-method and
 recorder tests again against an
 AddressSanitizer + UndefinedBehaviorSanitizer build (CMake option FMU_SANITIZE), and the C drivers
-under valgrind memcheck. Any report fails the test. The sanitized build and run go on in the
-background from the moment the test is selected (`SanitizedSuite`)."""
+under valgrind memcheck. Any report fails the test."""
 from __future__ import annotations
 
 import os
 import shutil
-import signal
 import subprocess
 import sys
-import threading
 from pathlib import Path
 
 import pytest
@@ -28,70 +25,29 @@ def compiler_file(name: str) -> str:
     return subprocess.run(["gcc", f"-print-file-name={name}"], capture_output=True, text=True, check=True).stdout.strip()
 
 
-class SanitizedSuite:
-    """The sanitized build and the sanitized test run, in a thread of their own: started when the
-    test is collected, so that it uses what the rest of the suite leaves of the machine's cores (the
-    test only waits for its outcome). The child processes run in a process group of their own, which
-    `stop()` ends if the session ends first."""
-
-    def __init__(self) -> None:
-        self.process: subprocess.Popen | None = None
-        self.outcome: tuple[str, int, str, str] | None = None  # (stage, return code, stdout, stderr)
-        self.stopped = False
-        self.thread = threading.Thread(target=self._run, name="sanitized suite", daemon=True)
-
-    def start(self) -> None:
-        self.thread.start()
-
-    def _step(self, stage: str, command: list[str], **options) -> bool:
-        if self.stopped:
-            return False
-        self.process = subprocess.Popen(command, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
-                                        start_new_session=True, **options)
-        stdout, stderr = self.process.communicate()
-        self.outcome = (stage, self.process.returncode, stdout, stderr)
-        return self.process.returncode == 0
-
-    def _run(self) -> None:
-        directory = PROJECT_ROOT / "build-sanitize"
-        asan, ubsan = compiler_file("libasan.so"), compiler_file("libubsan.so")
-        if not Path(asan).is_file() or not Path(ubsan).is_file():
-            self.outcome = ("skip", 0, "", "gcc's sanitizer runtimes are not installed")
-            return
-        if not (self._step("configure", ["cmake", "-S", str(PROJECT_ROOT), "-B", str(directory),
-                                          "-DCMAKE_BUILD_TYPE=Debug", "-DFMU_SANITIZE=ON", "-DFMU_CROSS=OFF"])
-                and self._step("build", ["cmake", "--build", str(directory), "-j2"])):
-            return
-        environment = dict(os.environ, PENDULUM_BUILD_DIR=str(directory), PENDULUM_SKIP_BUILD="1",
-                           LD_PRELOAD=f"{asan} {ubsan}", ASAN_OPTIONS="detect_leaks=0:abort_on_error=1",
-                           UBSAN_OPTIONS="halt_on_error=1:print_stacktrace=1")
-        self._step("tests", [sys.executable, "-m", "pytest", "-q", "-p", "no:cacheprovider", "-x",
-                             "-k", "not no_mutable_static_data", *SANITIZED_TESTS], cwd=PROJECT_ROOT, env=environment)
-
-    def result(self, timeout: float = 1800) -> tuple[str, int, str, str]:
-        self.thread.join(timeout)
-        assert not self.thread.is_alive(), "the sanitized suite did not finish in time"
-        return self.outcome
-
-    def stop(self) -> None:
-        self.stopped = True
-        if self.process is not None and self.process.poll() is None:
-            os.killpg(self.process.pid, signal.SIGKILL)
-        self.thread.join(10)
+@pytest.fixture(scope="module")
+def sanitized_build(tmp_path_factory) -> Path:
+    directory = PROJECT_ROOT / "build-sanitize"
+    for command in (["cmake", "-S", str(PROJECT_ROOT), "-B", str(directory), "-DCMAKE_BUILD_TYPE=Debug",
+                     "-DFMU_SANITIZE=ON", "-DFMU_CROSS=OFF"], ["cmake", "--build", str(directory), "-j2"]):
+        result = subprocess.run(command, capture_output=True, text=True)
+        assert result.returncode == 0, result.stdout[-3000:] + result.stderr[-3000:]
+    return directory
 
 
-SANITIZED = SanitizedSuite()  # started by conftest.py as soon as this test is selected
-
-
-def test_suite_runs_clean_under_address_and_undefined_behaviour_sanitizers():
-    if SANITIZED.outcome is None and not SANITIZED.thread.is_alive():
-        SANITIZED.start()  # selected in a way conftest.py did not see: run it now
-    stage, code, stdout, stderr = SANITIZED.result()
-    if stage == "skip":
-        pytest.skip(stderr)
-    report = f"{stage}: " + stdout[-4000:] + stderr[-4000:]
-    assert stage == "tests" and code == 0, report
-    assert "AddressSanitizer" not in stderr and "runtime error" not in stderr, report
+def test_suite_runs_clean_under_address_and_undefined_behaviour_sanitizers(sanitized_build):
+    asan, ubsan = compiler_file("libasan.so"), compiler_file("libubsan.so")
+    if not Path(asan).is_file() or not Path(ubsan).is_file():
+        pytest.skip("gcc's sanitizer runtimes are not installed")
+    environment = dict(os.environ, PENDULUM_BUILD_DIR=str(sanitized_build), PENDULUM_SKIP_BUILD="1",
+                       LD_PRELOAD=f"{asan} {ubsan}", ASAN_OPTIONS="detect_leaks=0:abort_on_error=1",
+                       UBSAN_OPTIONS="halt_on_error=1:print_stacktrace=1")
+    result = subprocess.run([sys.executable, "-m", "pytest", "-q", "-p", "no:cacheprovider", "-x",
+                             "-k", "not no_mutable_static_data", *SANITIZED_TESTS],
+                            cwd=PROJECT_ROOT, env=environment, capture_output=True, text=True, timeout=1200)
+    report = result.stdout[-4000:] + result.stderr[-4000:]
+    assert result.returncode == 0, report
+    assert "AddressSanitizer" not in result.stderr and "runtime error" not in result.stderr, report
 
 
 def memcheck(command: list[str]) -> None:
