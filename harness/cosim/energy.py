@@ -5,7 +5,11 @@ handed, W_in = integral of F_in v, and the force's source (a Spring) gives up th
 force along the velocity it was handed, W_out = integral of F v_in, where F_in, v_in are the inputs
 as the receiving FMUs used them (held, or extrapolated with their derivatives) and F, v the outputs
 the other side produced. The bond creates dE = W_in - W_out (destroys, when negative); a monolithic
-system has dE = 0.
+system has dE = 0. A source that also reads the point's position (a Spring) is reset to the handed
+position at each step's start, which changes its energy by -F dp: that is the bond's too. (F is
+the source's force at the end of its last step, before the reset; the measure therefore misses the
+reset's effect on the next step's force, and accounts for a quarter to a half of the drift on the
+spring scenes.)
 
 Both works are integrated over the values at the step's ends by the trapezoid rule corrected with
 the ends' derivatives, H/2 (g(t) + g(t+H)) + H^2/12 (g'(t) - g'(t+H)), exact to O(H^5): the plain
