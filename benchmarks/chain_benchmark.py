@@ -5,9 +5,9 @@ one FMU instance per component, for N = 10, 100 and 1000. Per N, measured in one
 * start-up per instance: loading, instantiating and preparing the master's units, and initializing;
 * memory per instance: the process's resident memory after start-up against before it;
 * cost per component and macro step: Gauss-Seidel, linear extrapolation, H = 0.01 (the C loop), as
-  the difference of the fastest runs of 2n and of n macro steps (so that the fixed costs of a run,
-  initialization and the table, drop out), and its ratio to the smallest N's (flat: the cost grows
-  linearly with N);
+  the difference of the fastest runs of 2n and of n macro steps, each in a fresh process (so that the
+  fixed costs of a run, initialization and the table, drop out), and its ratio to the smallest N's
+  (flat: the cost grows linearly with N);
 * the coupling error against the chain's derived monolithic reference, over the first seconds.
 """
 from __future__ import annotations
@@ -15,6 +15,7 @@ from __future__ import annotations
 import argparse
 import json
 import os
+import subprocess
 import sys
 import tempfile
 import time
@@ -31,11 +32,30 @@ from harness.studies.coupling import coupling_error, derived_reference  # noqa: 
 
 STEP = 0.01
 REPEATS = 5
+COMPONENT_STEPS = 1_000_000  # per timed run at least: macro steps times instances
 
 
 def resident_bytes() -> int:
     with open("/proc/self/statm") as handle:
         return int(handle.read().split()[1]) * os.sysconf("SC_PAGE_SIZE")
+
+
+def timed_run(scene: Path, steps: int) -> float:
+    """Seconds of one master run of the scene (set-up not included)."""
+    with load_system(scene) as system, Master(system, MasterOptions(stop=steps * STEP, step=STEP,
+                                                                     algorithm="gauss-seidel",
+                                                                     extrapolation="linear")) as master:
+        start = time.perf_counter()
+        master.run()
+        return time.perf_counter() - start
+
+
+def timed_run_in_a_process(scene: Path, steps: int) -> float:
+    """`timed_run` in a fresh process: one scene per process, as a user runs it (a process that has
+    made and freed thousands of instances before lays the next ones out differently in memory)."""
+    result = subprocess.run([sys.executable, __file__, "--time-run", str(scene), str(steps)], capture_output=True,
+                            text=True, check=True)
+    return float(result.stdout.split()[-1])
 
 
 def measure(n: int, steps: int, error_seconds: float, folder: Path) -> dict:
@@ -50,13 +70,11 @@ def measure(n: int, steps: int, error_seconds: float, folder: Path) -> dict:
         master._initialize()
         startup = time.perf_counter() - start
         memory = resident_bytes() - before
+    steps = max(steps, round(COMPONENT_STEPS / instances))  # long enough to time for small N too
     seconds: dict[int, list[float]] = {steps: [], 2 * steps: []}
     for _ in range(REPEATS):
         for n_steps in seconds:
-            with Master(system, options(n_steps)) as master:
-                start = time.perf_counter()
-                master.run()
-                seconds[n_steps].append(time.perf_counter() - start)
+            seconds[n_steps].append(timed_run_in_a_process(scene, n_steps))
     # the fastest of each (the least disturbed by other work on a shared machine), then their difference
     cost = (min(seconds[2 * steps]) - min(seconds[steps])) / (steps * instances)
     error_options = MasterOptions(stop=error_seconds, step=STEP, algorithm="gauss-seidel", extrapolation="linear")
@@ -75,13 +93,18 @@ def main() -> int:
     parser.add_argument("--sizes", type=int, nargs="+", default=[10, 100, 1000])
     parser.add_argument("--steps", type=int, default=1000, help="macro steps per cost measurement")
     parser.add_argument("--error-seconds", type=float, default=2.0, help="simulated time of the error run")
+    parser.add_argument("--time-run", nargs=2, metavar=("SCENE", "STEPS"), help=argparse.SUPPRESS)
     args = parser.parse_args()
+    if args.time_run:
+        print(timed_run(Path(args.time_run[0]), int(args.time_run[1])))
+        return 0
     build_fmus()
     with tempfile.TemporaryDirectory(prefix="chain_benchmark_") as folder:
         rows = [measure(n, args.steps, args.error_seconds, Path(folder)) for n in args.sizes]
     base = rows[0]["cost"]
     print(f"Chain of N pendulums and N - 1 springs, Gauss-Seidel, linear, H = {STEP} s; costs: the fastest of "
-          f"{REPEATS} runs of {2 * args.steps} macro steps less the fastest of {args.steps}")
+          f"{REPEATS} runs of 2n macro steps less the fastest of n (n at least {args.steps} and "
+          f"{COMPONENT_STEPS:.0e} / instances), each run in a process of its own")
     print(f"{'N':>6s} {'instances':>9s} {'start-up/instance':>18s} {'memory/instance':>16s} "
           f"{'us/(component step)':>20s} {'ratio to N=' + str(rows[0]['n']):>14s} "
           f"{'error [m] over ' + format(args.error_seconds, 'g') + ' s':>22s} {'reference [s]':>14s}")
