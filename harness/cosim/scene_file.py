@@ -227,7 +227,8 @@ def load_scene_file(path: Path) -> System:
     bonds = []
     listed = data.get("bonds", [])
     if not isinstance(listed, list):
-        raise read.fail("\"bonds\"", f"must be a list of pairs, not {_kind(listed)}")
+        raise read.fail("\"bonds\"", f"must be a list of [force, velocity] or [force, velocity, position] lists, "
+                                     f"not {_kind(listed)}")
     for entry in listed:
         if not isinstance(entry, list) or len(entry) not in (2, 3) or not all(isinstance(x, str) for x in entry):
             raise read.fail("a bond", f"{entry!r} must be a list of two or three \"component.variable\" texts: "
