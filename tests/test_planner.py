@@ -142,3 +142,29 @@ def test_a_tolerance_that_is_not_a_positive_number_is_a_one_line_error(fmu_paths
     assert main(["plan", str(PROJECT_ROOT / "scenes" / "thesis_scene.json"), "--tolerance", value]) == 2
     err = capsys.readouterr().err
     assert f"argument --tolerance: '{value}' must be a positive finite number" in err and err.count("\n") == 1
+
+
+def test_a_damped_scene_linearized_away_from_rest_is_planned(fmu_paths, tmp_path):
+    """A spring pendulum joined by a damped spring to a damped pendulum: linearized at its start the
+    scene shows a growing mode (Re > 0), which is no instability of the motion and must not make every
+    step look unstable."""
+    from harness.studies.monolithic import MonolithicScene
+    bob = [["x", "x"], ["y", "y"], ["v_x", "vx"], ["v_y", "vy"]]
+    scene = {
+        "name": "mixed", "stop": 1.5, "camera": {"frame_rate": 25},
+        "components": {
+            "link": {"fmu": "Spring", "start": {"k": 25.0, "c": 0.3, "l0": 1.2, "a_x": 0.0, "a_y": -1.0,
+                                                "b_x": 1.2, "b_y": -1.0}},
+            "springy": {"fmu": "SpringPendulum", "start": {"phi": 0.2, "eps": 0.05, "D": 40.0}},
+            "swing": {"fmu": "SimplePendulum", "start": {"phi": -0.3, "anchor_x": 1.2, "L": 0.9, "d": 0.05}}},
+        "connections": [[f"springy.{o}", f"link.a_{i}"] for o, i in bob] + [[f"swing.{o}", f"link.b_{i}"] for o, i in bob]
+        + [["link.Fa_x", "springy.F_x"], ["link.Fa_y", "springy.F_y"], ["link.Fb_x", "swing.F2_x"],
+           ["link.Fb_y", "swing.F2_y"]]}
+    path = tmp_path / "mixed.json"
+    path.write_text(json.dumps(scene))
+    system = load_system(path)
+    assert max(lam.real for lam in MonolithicScene(system).eigenvalues()) > 0  # what the plan must not trip on
+    plan = plan_scene(system, 2e-3)
+    assert [p.object for p in plan] == ["springy", "swing"]
+    for p in plan:
+        assert p.verified_error <= 2e-3 and p.cost < p.default_cost, p
