@@ -11,15 +11,11 @@ import numpy as np
 from scipy.integrate import solve_ivp
 
 from harness.cosim.structure import System
-from harness.fmi.calls import is_float
-from harness.fmi.fmu_instance import read_description
+from harness.fmi.fmu_instance import float_start_values, read_description
 
 
 def _values(component) -> dict[str, float]:
-    merged = {v.name: float(v.start) for v in read_description(component.fmu).modelVariables
-              if is_float(v) and v.start is not None}
-    merged.update({k: v for k, v in component.start.items() if not isinstance(v, str)})
-    return merged
+    return float_start_values(read_description(component.fmu), component.start)
 
 
 @dataclass(frozen=True)

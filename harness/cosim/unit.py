@@ -9,7 +9,7 @@ import numpy as np
 
 from harness.cosim.structure import Component, System
 from harness.errors import HarnessError
-from harness.fmi.fmu_instance import ERROR, STATUS_NAMES, FmuInstance, SharedFmus
+from harness.fmi.fmu_instance import ERROR, STATUS_NAMES, SharedFmus
 
 
 class Arena:
@@ -44,29 +44,15 @@ class Arena:
         return array
 
 
-class _Scattered:
-    """Buffers allocated one by one (a unit made outside a master)."""
-
-    @staticmethod
-    def doubles(n: int):
-        return (ctypes.c_double * max(n, 1))()
-
-    @staticmethod
-    def array(kind, values: list[int]):
-        return (kind * max(len(values), 1))(*values)
-
-
 class Unit:
     """One component with its preallocated buffers. `y_now`/`dy_now` are the outputs (and their
     derivatives) at the start of the macro step; `y_next_view`/`dy_next_view` what the last read
     returned; `u_view`/`du_view` the inputs (and derivatives) the next write hands over."""
 
-    def __init__(self, component: Component, system: System, fmus: SharedFmus | None = None,
-                 arena: Arena | None = None):
+    def __init__(self, component: Component, system: System, fmus: SharedFmus, arena: Arena):
         self.name = component.name
-        self._arena = arena if arena is not None else _Scattered()
-        self.instance = fmus.instance(component.fmu, component.name) if fmus is not None \
-            else FmuInstance(component.fmu, name=component.name)
+        self._arena = arena
+        self.instance = fmus.instance(component.fmu, component.name)
         self.live_states = 0  # FMU states saved and not yet released
         try:
             self._prepare(component, system)

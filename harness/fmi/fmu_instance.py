@@ -111,6 +111,15 @@ def read_description(path: Path):
         raise HarnessError(f"{path}: invalid modelDescription.xml ({first_problem(error)})") from None
 
 
+def float_start_values(description, overrides: dict | None = None) -> dict[str, float]:
+    """A model description's float start values, with the numeric values of `overrides` (a scene's
+    start values; item names and other text are left out) on top."""
+    from harness.fmi.calls import is_float
+    values = {v.name: float(v.start) for v in description.modelVariables if is_float(v) and v.start is not None}
+    values.update({k: float(v) for k, v in (overrides or {}).items() if not isinstance(v, str)})
+    return values
+
+
 # A decimal number as C and JSON write it, in ASCII (Python's float() also takes "1_000" and other
 # scripts' digits), or the names of infinity and NaN, which the FMU's range check then refuses.
 _NUMBER_TEXT = re.compile(r"[+-]?(?:(?:\d+\.?\d*|\.\d+)(?:[eE][+-]?\d+)?|inf|infinity|nan)", re.IGNORECASE | re.ASCII)

@@ -51,9 +51,8 @@ def derived_reference(system: System, times: np.ndarray) -> tuple[dict[str, np.n
     """The scene's monolithic reference (`harness.studies.monolithic`) at `times`: its columns and the
     (x, y) column pairs of every object point. Refuses a scene it cannot derive, and FMI 3.0
     components, which take no input derivatives (the studies compare linear extrapolation)."""
-    from harness.fmi.fmu_instance import read_description
     scene = MonolithicScene(system)
-    newer = [c.name for c in system.components if read_description(c.fmu).fmiVersion != "2.0"]
+    newer = [name for name, version in scene.fmi_versions.items() if version != "2.0"]
     if newer:
         raise HarnessError(f"{system.name}: the coupling studies compare linear extrapolation and iterated steps, "
                            f"which hand inputs over with their derivatives; {', '.join(newer)} "

@@ -26,12 +26,14 @@ from __future__ import annotations
 
 import functools
 from dataclasses import dataclass, field
+from pathlib import Path
 
 import numpy as np
 import sympy as sp
 
 from harness.cosim.structure import System
 from harness.errors import HarnessError
+from harness.fmi.fmu_instance import float_start_values
 
 REFERENCE_BUDGET = 2_000_000  # right-hand-side evaluations of one monolithic reference
 SPRING = "Spring"
@@ -44,17 +46,24 @@ class _OverBudget(Exception):
     pass
 
 
-def _start_values(component) -> tuple[str, str, dict[str, float], object]:
-    """The FMU's model identifier, FMI version, every float start value (the component's own
-    overriding the FMU's) and the description."""
-    from harness.fmi.calls import is_float
-    from harness.fmi.fmu_instance import read_description
-    description = read_description(component.fmu)
-    values = {v.name: float(v.start) for v in description.modelVariables if is_float(v) and v.start is not None}
-    values.update({k: float(v) for k, v in component.start.items()
-                   if isinstance(v, (int, float)) and not isinstance(v, bool)})
-    interface = description.coSimulation or description.modelExchange
-    return interface.modelIdentifier, description.fmiVersion, values, description
+class _FmuFacts:
+    """What the reference reads from each FMU file, once per file however many components use it: its
+    description, whether it is a Spring, and the object file it carries."""
+
+    def __init__(self, system: System):
+        self.system = system
+        self._read: dict[Path, tuple] = {}
+
+    def __call__(self, component) -> tuple[object, bool, tuple[str, str] | None]:
+        from harness.fmi.fmu_instance import read_description
+        path = Path(component.fmu)
+        if path not in self._read:
+            description = read_description(path)
+            interface = description.coSimulation or description.modelExchange
+            spring = interface.modelIdentifier == SPRING and {v.name for v in description.modelVariables} >= \
+                set(SPRING_INPUTS + SPRING_OUTPUTS + SPRING_PARAMETERS)
+            self._read[path] = (description, spring, None if spring else _carried_object_file(component, self.system))
+        return self._read[path]
 
 
 @functools.lru_cache(maxsize=32)
@@ -127,18 +136,20 @@ class MonolithicScene:
         self.kinds: dict[str, _Kind] = {}
         self.where: dict[str, tuple[str, int]] = {}  # component -> (kind or SPRING, row)
         self.springs: list[str] = []
+        self.fmi_versions: dict[str, str] = {}  # component -> its FMU's FMI version
         spring_values, start = [], []
         offset = 0
+        facts = _FmuFacts(system)
         for component in system.components:
-            identifier, version, values, description = _start_values(component)
-            if identifier == SPRING and {v.name for v in description.modelVariables} >= \
-                    set(SPRING_INPUTS + SPRING_OUTPUTS + SPRING_PARAMETERS):
+            description, spring, object_file = facts(component)
+            self.fmi_versions[component.name] = description.fmiVersion
+            values = float_start_values(description, component.start)
+            if spring:
                 self.where[component.name] = (SPRING, len(self.springs))
                 self.springs.append(component.name)
                 spring_values.append(values)
                 continue
-            spec_text = _carried_object_file(component, system)
-            functions = _kind_functions(*spec_text)
+            functions = _kind_functions(*object_file)
             model = component.start.get("model", "nonlinear")
             if model not in ("nonlinear", 1, 1.0):
                 raise HarnessError(f"{system.name}: {component.name}.model = {model!r}: the monolithic reference "

@@ -34,8 +34,7 @@ import numpy as np
 
 from harness.cosim.structure import Component, System
 from harness.errors import HarnessError
-from harness.fmi.calls import is_float
-from harness.fmi.fmu_instance import accepted_methods, read_description
+from harness.fmi.fmu_instance import accepted_methods, float_start_values, read_description
 from harness.fmi.methods import ORDER
 from harness.objects.proof import object_file_in
 from harness.objects.thesis.equations import OUTER_MASS, Pendulum
@@ -67,10 +66,7 @@ THESIS_PENDULUMS = tuple(OUTER_MASS)
 
 def object_parameters(component: Component) -> dict[str, float]:
     """The FMU's Real start values with the scene's overrides."""
-    description = read_description(component.fmu)
-    values = {v.name: float(v.start) for v in description.modelVariables if is_float(v) and v.start is not None}
-    values.update({k: float(v) for k, v in component.start.items() if not isinstance(v, str)})
-    return values
+    return float_start_values(read_description(component.fmu), component.start)
 
 
 def object_eigenvalues(kind: str, component: Component) -> list[complex] | None:

@@ -27,8 +27,7 @@ from pathlib import Path
 import numpy as np
 
 from harness.cosim.structure import Component
-from harness.fmi.calls import is_float
-from harness.fmi.fmu_instance import FmuInstance, accepted_methods, read_description
+from harness.fmi.fmu_instance import FmuInstance, accepted_methods, float_start_values, read_description
 from harness.fmi.methods import FIXED_STEP, ORDER
 from harness.fmi.simulation import Recorder, communication_grid
 from harness.objects.derivation import derive
@@ -140,8 +139,7 @@ def peer_equations(fmu: str) -> Pendulum | ObjectMotion:
     description = read_description(Path(fmu))
     if description.coSimulation.modelIdentifier in OUTER_MASS:
         return Pendulum.from_fmu(fmu)
-    values = {v.name: float(v.start) for v in description.modelVariables if is_float(v) and v.start is not None}
-    return ObjectMotion(derive(object_file_in(fmu)), values)
+    return ObjectMotion(derive(object_file_in(fmu)), float_start_values(description))
 
 
 def position_error(positions: np.ndarray, reference: TracedReference) -> float:

@@ -36,13 +36,10 @@ class Pendulum:
 
     @classmethod
     def from_fmu(cls, fmu: str | Path, overrides: dict[str, float] | None = None, lib=math) -> "Pendulum":
-        from harness.fmi.calls import is_float
-        from harness.fmi.fmu_instance import read_description
+        from harness.fmi.fmu_instance import float_start_values, read_description
         description = read_description(Path(fmu))
         name = description.coSimulation.modelIdentifier
-        values = {v.name: float(v.start) for v in description.modelVariables
-                  if is_float(v) and v.start is not None}
-        values.update({k: float(v) for k, v in (overrides or {}).items() if not isinstance(v, str)})
+        values = float_start_values(description, overrides)
         return cls(name, values, [values[s] for s in STATES[name]], lib)
 
     def convert(self, dtype) -> "Pendulum":
