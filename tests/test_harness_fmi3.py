@@ -125,6 +125,17 @@ def test_rollback_through_fmi3_states_matches_fmi2(fmu_paths, coupled):
         assert np.array_equal(runs[1].values, runs[0].values)
 
 
+def test_an_fmi3_spring_measures_its_bonds_as_the_fmi2_one(coupled):
+    """The bonds' measure asks a spring for its directional derivatives (fmi3GetDirectionalDerivative)."""
+    runs = []
+    for system in (coupled, scene_with(coupled, {"spring": "3.0"})):
+        with Master(system, MasterOptions(stop=1.0, step=0.01, extrapolation="hold", energy_correction=True)) as master:
+            runs.append(master.run())
+    assert abs(sum(runs[0].bond_energy.values())) > 1e-6
+    assert runs[1].bond_energy == runs[0].bond_energy
+    assert np.array_equal(runs[1].values, runs[0].values)
+
+
 def test_an_fmi3_source_hands_over_its_output_derivatives(coupled):
     """Linear extrapolation needs input derivatives at the receiver only: a pendulum that only feeds
     the spring may be FMI 3.0 (fmi3GetOutputDerivatives gives the slopes)."""

@@ -25,14 +25,16 @@ FUNCTIONS = {
                 deserialize="fmi2DeSerializeFMUstate", output_derivatives="fmi2GetRealOutputDerivatives",
                 input_derivatives="fmi2SetRealInputDerivatives", do_step="fmi2DoStep",
                 continuous_time_mode="fmi2EnterContinuousTimeMode", set_time="fmi2SetTime",
-                set_states="fmi2SetContinuousStates", derivatives="fmi2GetDerivatives"),
+                set_states="fmi2SetContinuousStates", derivatives="fmi2GetDerivatives",
+                directional="fmi2GetDirectionalDerivative"),
     "3.0": dict(reset="fmi3Reset", exit_initialization="fmi3ExitInitializationMode",
                 get_state="fmi3GetFMUState", set_state="fmi3SetFMUState", free_state="fmi3FreeFMUState",
                 state_size="fmi3SerializedFMUStateSize", serialize="fmi3SerializeFMUState",
                 deserialize="fmi3DeserializeFMUState", output_derivatives="fmi3GetOutputDerivatives",
                 input_derivatives=None, do_step="fmi3DoStep",
                 continuous_time_mode="fmi3EnterContinuousTimeMode", set_time="fmi3SetTime",
-                set_states="fmi3SetContinuousStates", derivatives="fmi3GetContinuousStateDerivatives"),
+                set_states="fmi3SetContinuousStates", derivatives="fmi3GetContinuousStateDerivatives",
+                directional="fmi3GetDirectionalDerivative"),
 }
 
 
@@ -92,6 +94,11 @@ _STEP3 = ctypes.CFUNCTYPE(_STATUS, _ADDRESS, ctypes.c_double, ctypes.c_double, c
 # (instance, value references, count, orders, values[, count of values])
 _DERIVATIVES2 = ctypes.CFUNCTYPE(_STATUS, _ADDRESS, _ADDRESS, ctypes.c_size_t, _ADDRESS, _ADDRESS)
 _DERIVATIVES3 = ctypes.CFUNCTYPE(_STATUS, _ADDRESS, _ADDRESS, ctypes.c_size_t, _ADDRESS, _ADDRESS, ctypes.c_size_t)
+# (instance, unknowns, count, knowns, count, seed[, count], sensitivity[, count])
+_DIRECTIONAL2 = ctypes.CFUNCTYPE(_STATUS, _ADDRESS, _ADDRESS, ctypes.c_size_t, _ADDRESS, ctypes.c_size_t, _ADDRESS,
+                                 _ADDRESS)
+_DIRECTIONAL3 = ctypes.CFUNCTYPE(_STATUS, _ADDRESS, _ADDRESS, ctypes.c_size_t, _ADDRESS, ctypes.c_size_t, _ADDRESS,
+                                 ctypes.c_size_t, _ADDRESS, ctypes.c_size_t)
 
 
 # The functions whose arguments have the same shape in both versions, after the instance.
@@ -169,6 +176,16 @@ class Calls:
             return _DERIVATIVES2(function_address(self.dll, name))
         function = _DERIVATIVES3(function_address(self.dll, name))
         return lambda c, vrs, n, orders, values: function(c, vrs, n, orders, values, n)
+
+    def directional(self):
+        """f(instance, unknowns, n_unknown, knowns, n_known, seed, sensitivity) -> status: the Jacobian
+        of the unknowns with respect to the knowns times the seed."""
+        name = self.names["directional"]
+        if self.version == "2.0":
+            return _DIRECTIONAL2(function_address(self.dll, name))
+        function = _DIRECTIONAL3(function_address(self.dll, name))
+        return lambda c, unknowns, n_unknown, knowns, n_known, seed, sensitivity: function(
+            c, unknowns, n_unknown, knowns, n_known, seed, n_known, sensitivity, n_unknown)
 
     def input_derivatives(self):
         """f(instance, vrs, n, orders, values) -> status, or None: FMI 3.0 has no input derivatives."""

@@ -14,6 +14,7 @@ import shutil
 from dataclasses import dataclass, field
 from functools import lru_cache
 from pathlib import Path
+from xml.etree import ElementTree
 
 import numpy as np
 from fmpy import read_model_description
@@ -339,6 +340,14 @@ class FmuInstance:
         # As c_void_p: for a function fmpy did not declare (a CS function on an ME instance) ctypes
         # would otherwise pass the handle as a 32-bit int.
         return getattr(self.fmu.dll, function)(self.raw.component, *args)
+
+    @property
+    def provides_directional_derivatives(self) -> bool:
+        """The interface's capability flag (fmpy does not read FMI 3.0's, so it is read here)."""
+        element = ElementTree.parse(Path(self.unzipdir) / "modelDescription.xml").getroot().find(
+            "CoSimulation" if self.kind == "CS" else "ModelExchange")
+        flag = "providesDirectionalDerivative" + ("" if self.version == "2.0" else "s")
+        return element is not None and element.get(flag) in ("true", "1")
 
     def role(self, role: str, *args) -> int:
         """The function of a role (harness/fmi/calls.py: reset, get_state, ...) in this instance's version."""
