@@ -15,7 +15,7 @@ platform merge.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import asdict, dataclass, field
 from pathlib import Path
 
 import pytest
@@ -63,6 +63,19 @@ class Record:
         fields = {k: str(v).format(**params) for k, v in marker.kwargs.items()}
         made = Row(**fields)
         return self.rows.setdefault(made.key, made)
+
+    def merge(self, rows: list[Row], expected: set[str], reported: set[str], references: dict) -> None:
+        """Adds what another process of the same run recorded (a parallel test worker)."""
+        for row in rows:
+            mine = self.rows.setdefault(row.key, Row(row.importer, row.version, row.interface, row.platform,
+                                                     row.criterion))
+            for fmu, difference in row.differences.items():
+                mine.agrees(fmu, difference)
+            for reason in row.reasons or [""]:
+                mine.worsen(row.outcome, reason)
+        self.expected |= expected
+        self.reported |= reported
+        self.references.update(references)
 
 
 def _format_difference(value: float) -> str:
@@ -154,7 +167,25 @@ class CompatibilityPlugin:
         if report.when == "teardown":
             self.record.reported.add(report.nodeid)
 
+    @pytest.hookimpl(optionalhook=True)
+    def pytest_testnodedown(self, node, error) -> None:
+        """A parallel worker (pytest-xdist) finished: its part of the record joins this one's."""
+        part = getattr(node, "workeroutput", {}).get("compatibility")
+        if part is None:
+            return
+        self.record.merge([Row(**row) for row in part["rows"]], set(part["expected"]), set(part["reported"]),
+                          {fmu: Reference(**reference) for fmu, reference in part["references"].items()})
+        self.files_run |= {Path(name) for name in part["files_run"]}
+        self.deselected = max(self.deselected, part["deselected"])  # every worker collects the whole run
+
     def pytest_sessionfinish(self, session) -> None:
+        if hasattr(session.config, "workeroutput"):  # a parallel worker: the controller writes the record
+            record = self.record
+            session.config.workeroutput["compatibility"] = dict(
+                rows=[asdict(row) for row in record.rows.values()], expected=sorted(record.expected),
+                reported=sorted(record.reported), references={k: asdict(v) for k, v in record.references.items()},
+                files_run=sorted(str(path) for path in self.files_run), deselected=self.deselected)
+            return
         if not self.record.rows:
             return
         # The documents hold a whole run only: every test file, nothing deselected, every row's test reported.

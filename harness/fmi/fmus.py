@@ -1,6 +1,7 @@
 """Where the built FMUs are, and building them with CMake when they are missing."""
 from __future__ import annotations
 
+import fcntl
 import os
 import shutil
 import subprocess
@@ -37,6 +38,18 @@ def build_fmus(quiet: bool = True) -> None:
     # lines about an interrupt never reach the terminal)
     output = subprocess.DEVNULL if quiet else None
     errors = subprocess.PIPE if quiet else None
+    try:
+        build_dir().mkdir(parents=True, exist_ok=True)
+        lock = open(build_dir() / ".build.lock", "w")
+    except OSError as error:
+        raise HarnessError(f"cannot write the build folder {build_dir()}: {error.strerror}") from None
+    # one build at a time in a folder (parallel test workers, two commands at once): a second waits
+    with lock:
+        fcntl.flock(lock, fcntl.LOCK_EX)
+        _build(output, errors)
+
+
+def _build(output, errors) -> None:
     for command in (["cmake", "-S", str(PROJECT_ROOT), "-B", str(build_dir()), "-DCMAKE_BUILD_TYPE=Release",
                      f"-DOBJECTS_PYTHON={sys.executable}"], ["cmake", "--build", str(build_dir()), "-j2"]):
         result = run_program(command, stdout=output, stderr=errors)
