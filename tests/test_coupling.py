@@ -11,10 +11,11 @@ import numpy as np
 import pytest
 
 from harness.cli import main
+from harness.cosim.master import MasterOptions, run_system
 from harness.cosim.system import load_system
 from harness.fmi.fmus import PROJECT_ROOT
 from harness.objects.thesis.reference import slope
-from harness.studies.coupling import read_csv
+from harness.studies.coupling import coupling_error, derived_reference, read_csv
 from pair_reference import CoupledPair
 
 SCENE = PROJECT_ROOT / "scenes" / "coupled_pendulums.json"
@@ -121,3 +122,25 @@ def test_the_coupling_sweep_runs_on_dask_as_in_processes(fmu_paths):
     assert [(p.step, p.error, p.rhs_evals, p.do_steps) for p in on_dask] == \
         [(p.step, p.error, p.rhs_evals, p.do_steps) for p in in_processes]
     assert all(0 < p.error < 1e-2 for p in on_dask)
+
+
+@pytest.mark.parametrize("algorithm", ["jacobi", "gauss-seidel"])
+def test_a_damped_spring_keeps_linear_extrapolation_second_order(fmu_paths, tmp_path, algorithm):
+    """A spring with damping hands over the rate of its force, which at a step's end follows the
+    slopes its ends' velocities had over the step (their accelerations): Jacobi, which extrapolates
+    with that rate, converges at second order as on the undamped pair (it was first order while the
+    rate left the slopes out)."""
+    scene = json.loads(SCENE.read_text())
+    scene["components"]["spring"]["start"]["c"] = 0.5
+    path = tmp_path / "damped.json"
+    path.write_text(json.dumps(scene))
+    steps = (0.02, 0.01, 0.005)
+    with load_system(path) as system:
+        reference = derived_reference(system, np.arange(0, 76) * 0.04)
+        errors = []
+        for H in steps:
+            result = run_system(system, MasterOptions(stop=3.0, step=H, algorithm=algorithm, extrapolation="linear"))
+            every = round(0.04 / H)
+            kept = type(result)(result.columns, result.values[::every], result.energy[::every])
+            errors.append(coupling_error(kept, *reference))
+    assert 1.8 <= slope(list(steps), errors) <= 2.4, errors

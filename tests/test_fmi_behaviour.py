@@ -458,6 +458,40 @@ def test_spring_outputs_belong_to_the_end_of_the_step(open_fmu):
     assert fmu.set(b_x=5.0) == OK and fmu.get("Fa_x")[0] == pytest.approx(Fa_x)
 
 
+def test_spring_output_derivatives_follow_the_slopes_of_the_step(open_fmu):
+    """At a step's end the force's rate follows the inputs as they moved over the step, velocities with
+    their slopes (the damping term's rate needs the ends' accelerations): checked against the force
+    written out along the extrapolated inputs and differentiated by central differences. The slopes
+    drive no further step."""
+    k, c, l0, H = 10.0, 2.0, 1.0, 0.5
+    start = dict(a_x=0.0, a_y=0.0, b_x=1.2, b_y=0.3, a_vx=0.1, a_vy=-0.2, b_vx=0.5, b_vy=0.4)
+    slopes = dict(a_vx=0.7, a_vy=-1.1, b_vx=1.0, b_vy=0.3)
+    fmu = open_fmu("Spring")
+    fmu.initialize(k=k, c=c, l0=l0, **start)
+    assert fmu.set_input_derivatives(**slopes) == OK
+    assert fmu.do_step(0.0, H) == OK
+
+    def end(name: str, t: float) -> tuple[float, float]:  # a point's position and velocity at time t
+        x, y = start[f"{name}_x"], start[f"{name}_y"]
+        vx, vy, ax, ay = start[f"{name}_vx"], start[f"{name}_vy"], slopes[f"{name}_vx"], slopes[f"{name}_vy"]
+        return np.array([x + vx * t + ax * t * t / 2, y + vy * t + ay * t * t / 2]), np.array([vx + ax * t, vy + ay * t])
+
+    def force_on_a(t: float) -> np.ndarray:
+        (pa, va), (pb, vb) = end("a", t), end("b", t)
+        r = np.linalg.norm(pb - pa)
+        e = (pb - pa) / r
+        return (k * (r - l0) + c * np.dot(vb - va, e)) * e
+
+    delta = 1e-5
+    expected = (force_on_a(H + delta) - force_on_a(H - delta)) / (2 * delta)
+    assert np.allclose(fmu.get("Fa_x", "Fa_y"), force_on_a(H), rtol=1e-12)
+    assert np.allclose(fmu.output_derivatives("Fa_x", "Fa_y"), expected, rtol=1e-7, atol=1e-8)
+    # the next step, its slopes not set again, holds the velocities
+    assert fmu.do_step(H, 0.1) == OK
+    b, vb = end("b", H)
+    assert fmu.get("b_x", "b_vx") == pytest.approx([b[0] + vb[0] * 0.1, vb[0]], rel=1e-14)
+
+
 def test_spring_at_zero_length(open_fmu):
     zero_rest = open_fmu("Spring")
     zero_rest.initialize(l0=0.0, b_x=0.0, c=3.0)

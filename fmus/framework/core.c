@@ -577,6 +577,10 @@ static int restored_state_valid(Instance *inst, const char *function, const SimS
                             s->integer[i]))
             return 0;
 #endif
+    if (s->slopes_set != 0 && s->slopes_set != 1) {
+        log_error(inst, "%s: the FMU state's input slope flag is %d (allowed: 0 or 1)", function, (int)s->slopes_set);
+        return 0;
+    }
 #if N_INPUTS > 0
     for (i = 0; i < N_INPUTS; i++)
         if (!isfinite(s->input_derivative[i])) {
@@ -830,7 +834,10 @@ Status core_set_input_derivatives(Instance *inst, const char *function, const un
             return STATUS_ERROR;
         }
     }
+    if (!inst->s.slopes_set) /* the last step's slopes no longer hold: only those set now drive the next */
+        memset(inst->s.input_derivative, 0, sizeof inst->s.input_derivative);
     for (i = 0; i < nvr; i++) inst->s.input_derivative[input_index(vr[i])] = value[i];
+    inst->s.slopes_set = 1;
     return STATUS_OK;
 }
 

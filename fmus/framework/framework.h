@@ -87,7 +87,8 @@ typedef struct {
     double last_successful_time;
     double real[N_REAL];
     int32_t integer[INTEGER_SLOTS];
-    double input_derivative[INPUT_SLOTS]; /* first derivatives of the inputs, for the next step */
+    double input_derivative[INPUT_SLOTS]; /* first derivatives of the inputs over the next (or last) step */
+    int32_t slopes_set; /* 1: set for the next step; 0: those of the last step, for its end's output rates */
     int32_t machine_state;
     IntegratorMemory integrator;
 } SimState;

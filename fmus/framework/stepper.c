@@ -18,11 +18,19 @@ void restart_integrator(Instance *inst)
     inst->s.integrator.rkf_proposal = 0.0;
 }
 
+/* Input slopes drive a step only when set for it: those left from the last step (kept so that the
+ * output derivatives at its end follow them) give way to held inputs. */
+static void take_slopes(SimState *s)
+{
+    if (!s->slopes_set) memset(s->input_derivative, 0, sizeof s->input_derivative);
+}
+
 #if N_STATES == 0
 
 Status step_to(Instance *inst, const char *function, double t, double H)
 {
     double before[N_REAL];
+    take_slopes(&inst->s);
     memcpy(before, inst->s.real, sizeof before);
     model_advance_inputs(inst->s.real, inst->s.input_derivative, H);
     /* The outputs belong to the end of the step; a singular or overflowing end keeps the step from
@@ -35,7 +43,7 @@ Status step_to(Instance *inst, const char *function, double t, double H)
         inst->s.last_successful_time = t;
         return STATUS_DISCARD;
     }
-    memset(inst->s.input_derivative, 0, sizeof inst->s.input_derivative);
+    inst->s.slopes_set = 0;
     inst->s.time = t + H;
     inst->s.last_successful_time = t + H;
     inst->outputs_valid = 1;
@@ -47,7 +55,7 @@ Status step_to(Instance *inst, const char *function, double t, double H)
 static Status finish(Instance *inst, double t, double H_done, double t_reached)
 {
     model_advance_inputs(inst->s.real, inst->s.input_derivative, H_done);
-    memset(inst->s.input_derivative, 0, sizeof inst->s.input_derivative); /* slopes hold for one step */
+    inst->s.slopes_set = 0; /* slopes hold for one step; kept for the output rates at its end */
     inst->s.time = t_reached;
     inst->s.last_successful_time = t_reached;
     inst->outputs_valid = 0;
@@ -171,6 +179,7 @@ Status step_to(Instance *inst, const char *function, double t, double H)
     double checked[N_REAL];
     int i;
 
+    take_slopes(s);
     f.model = &inst->constants;
     gather_inputs(inst, f.u0);
     f.inputs_vary = 0;
