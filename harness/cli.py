@@ -157,7 +157,7 @@ def command_run(args: argparse.Namespace) -> int:
     from harness.output import csv_header, output_file, written
     out = output_file(args.out, "--out", system_inputs(args.system))
     reference = output_file(args.reference, "--reference", system_inputs(args.system), outputs={"--out": out}) \
-        if args.reference else None
+        if args.reference is not None else None
     with load_system(args.system) as system:
         out = output_file(out, "--out", component_files(args.system, system))
         stop = args.stop if args.stop is not None else system.stop
@@ -173,16 +173,17 @@ def command_run(args: argparse.Namespace) -> int:
                                 on_discard=args.on_discard, progress=not args.quiet, iterate_tol=args.iterate,
                                 tolerance=args.tolerance, energy_tol=args.energy_tolerance,
                                 energy_correction=args.energy_correction)
-        with Master(system, options) as master, written(out, csv_header(master.columns)) as stream:
+        with Master(system, options) as master:
+            if scene is not None:  # first: a reference that cannot be written stops the command before --out
+                from harness.fmi.simulation import communication_grid
+                write_reference(scene, master.columns, communication_grid(options.start, options.stop, options.step),
+                                reference)
+            with written(out, csv_header(master.columns)) as stream:
 
-            def write_row(row) -> None:  # rows go out as they come: a stopped run keeps what it computed
-                stream.write(",".join(f"{v:.17g}" for v in row) + "\n")
+                def write_row(row) -> None:  # rows go out as they come: a stopped run keeps what it computed
+                    stream.write(",".join(f"{v:.17g}" for v in row) + "\n")
 
-            result = master.run(on_row=write_row)
-            columns = master.columns
-        if scene is not None:
-            from harness.fmi.simulation import communication_grid
-            write_reference(scene, columns, communication_grid(options.start, options.stop, options.step), reference)
+                result = master.run(on_row=write_row)
     steps = (f"{result.macro_steps} macro steps chosen by step doubling (rows every {step:g} s)" if args.tolerance
              else f"{result.macro_steps} macro steps chosen by the bonds' energy (rows every {step:g} s)"
              if args.energy_tolerance else f"{result.macro_steps} macro steps of {step:g} s")
@@ -401,8 +402,8 @@ def build_parser() -> argparse.ArgumentParser:
                         "--step is then the output interval and the largest macro step")
     p.add_argument("--energy-tolerance", type=positive_number, metavar="J",
                    help="choose the macro steps by a PI controller on the energy the scene's power bonds create, "
-                        "for at most about J joules over the run; --step is then the output interval and the "
-                        "largest macro step")
+                        "each step's sum of the bonds' |energy| within its share of J over the run (the drift "
+                        "then stays below J); --step is then the output interval and the largest macro step")
     p.add_argument("--energy-correction", action="store_true",
                    help="hand the energy the power bonds created back through the next steps' forces")
     p.add_argument("--out", default="run.csv", help="CSV file: time and <component>.<output> columns")

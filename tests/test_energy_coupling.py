@@ -123,27 +123,39 @@ def test_energy_options_need_bonds_and_one_step_control(fmu_paths, tmp_path, cap
     assert main(["run", str(SCENES / "coupled_pendulums.json"), "--energy-tolerance", "0.01", "--on-discard",
                  "retry", "--out", out, "--quiet"]) == 2
     assert "does not combine with --on-discard retry" in capsys.readouterr().err
+    assert main(["run", str(SCENES / "coupled_pendulums.json"), "--energy-correction", "--tolerance", "1e-4",
+                 "--out", out, "--quiet"]) == 2
+    assert "--energy-correction does not combine with --tolerance" in capsys.readouterr().err
 
 
-@pytest.mark.parametrize("bond, words", [
-    (["left.F_x", "left.v_y", "left.x"], None),  # a velocity the spring reads: accepted (the user's pairing)
-    (["left.F_x", "left.E", "left.x"], "left.E must feed exactly one input of spring"),
-    (["left.F2_x", "left.v_x"], "no connection feeds left.F2_x"),
-    (["left.F_x", "right.v_x"], "belong to one component"),
-    (["left.F_x"], "must be a list of two or three"),
+@pytest.mark.parametrize("bonds, words", [
+    # velocities swapped between the axes, every output the spring reads named: the user's pairing
+    ([["left.F_x", "left.v_y", "left.x"], ["left.F_y", "left.v_x", "left.y"]], None),
+    ([["left.F_x", "left.E", "left.x"]], "left.E must feed exactly one input of spring"),
+    ([["left.F2_x", "left.v_x"]], "no connection feeds left.F2_x"),
+    ([["left.F_x", "right.v_x"]], "belong to one component"),
+    ([["left.F_x"]], "must be a list of two or three"),
+    ([["left.F_y", "left.v_y", "left.y"]], "left.F_y is in another bond already"),
+    ([["left.F_x", "left.v_x"]], "spring reads left.x, which no bond names"),
 ])
-def test_a_bond_that_is_not_one_is_refused_by_name(fmu_paths, tmp_path, capsys, bond, words):
+def test_a_bond_that_is_not_one_is_refused_by_name(fmu_paths, tmp_path, capsys, bonds, words):
+    """The bonds replace the scene's first ones. They are checked when the scene is read, so a plain
+    run and an export refuse them as the energy coupling does."""
     scene = json.loads((SCENES / "coupled_pendulums.json").read_text())
-    scene["bonds"] = [bond]
+    scene["bonds"][:len(bonds)] = bonds
     path = tmp_path / "bonds.json"
     path.write_text(json.dumps(scene))
-    status = main(["run", str(path), "--stop", "0.1", "--energy-correction", "--out", str(tmp_path / "r.csv"),
-                   "--quiet"])
-    err = capsys.readouterr().err
-    if words is None:
-        assert status == 0, err
-    else:
-        assert status == 2 and words in err and err.count("\n") == 1, err
+    runs = [["run", str(path), "--stop", "0.1", "--energy-correction", "--out", str(tmp_path / "r.csv"), "--quiet"],
+            ["run", str(path), "--stop", "0.1", "--out", str(tmp_path / "r.csv"), "--quiet"],
+            ["export", str(path), "--ssp", str(tmp_path / "scene.ssp")]]
+    for argv in runs:
+        status = main(argv)
+        err = capsys.readouterr().err
+        if words is None:
+            assert status == 0, err
+        else:
+            assert status == 2 and words in err and err.count("\n") == 1, (argv, err)
+            assert not (tmp_path / "scene.ssp").exists()
 
 
 def test_bonds_in_a_system_built_in_code_are_checked_where_used(fmu_paths):
@@ -176,3 +188,21 @@ def test_a_spring_without_directional_derivatives_is_refused_for_bonds(fmu_paths
     err = capsys.readouterr().err
     assert "bond left.F_x" in err and "spring reads the point's position" in err and "directional derivatives" in err
     assert main(["run", str(path), "--stop", "0.1", "--out", str(out), "--quiet"]) == 0
+
+
+def test_a_rollback_takes_back_what_the_bonds_measured(fmu_paths):
+    """Retry after a discard rolls the FMU states back and, with them, the energy the bonds measured
+    and the correction still owes, so that a step taken again is not counted twice."""
+    from harness.cosim.unit import Snapshot
+    with load_system(SCENES / "coupled_pendulums.json") as system:
+        with Master(system, MasterOptions(stop=0.5, step=0.01, algorithm="gauss-seidel", extrapolation="linear",
+                                          energy_correction=True, on_discard="retry")) as master:
+            master.run()
+            bonded = master.interval.stepper
+            before = (bonded.pending, master.bonds.created.copy(), [r.moved for r in master.bonds.resets])
+            with Snapshot(master.units, bonded) as start:
+                assert bonded.step(0.5, 0.01).status == 0
+                assert not np.array_equal(master.bonds.created, before[1]) and bonded.pending != before[0]
+                start.restore()
+            assert bonded.pending == before[0] and np.array_equal(master.bonds.created, before[1])
+            assert all(r.moved is m for r, m in zip(master.bonds.resets, before[2]))

@@ -162,3 +162,20 @@ def test_a_scene_without_energies_is_refused_by_name(fmu_paths, tmp_path):
 def test_the_spring_scene_files_are_what_their_rules_write():
     for name, data in repository_scenes().items():
         assert json.loads((SCENES / name).read_text()) == data, name
+
+
+def test_a_reference_that_cannot_be_written_leaves_the_out_file_alone(fmu_paths, tmp_path, capsys, monkeypatch):
+    """The reference is written before the run: when it cannot be (a full disk, a read-only folder),
+    the command stops with one line and the --out file is not touched; an empty name is refused."""
+    import harness.cli
+    out, reference = tmp_path / "run.csv", tmp_path / "ref.csv"
+    out.write_text("kept\n")
+
+    def full_disk(*arguments):
+        raise HarnessError(f"{reference}: cannot write here: No space left on device")
+    monkeypatch.setattr(harness.cli, "write_reference", full_disk)
+    scene = str(SCENES / "coupled_pendulums.json")
+    assert main(["run", scene, "--stop", "0.1", "--out", str(out), "--reference", str(reference), "--quiet"]) == 2
+    assert "No space left" in capsys.readouterr().err and out.read_text() == "kept\n"
+    assert main(["run", scene, "--stop", "0.1", "--out", str(out), "--reference", "", "--quiet"]) == 2
+    assert "--reference '': names no file" in capsys.readouterr().err and out.read_text() == "kept\n"

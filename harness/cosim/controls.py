@@ -74,7 +74,7 @@ class RetryOnDiscard:
         self.stepper, self.units, self.max_halvings, self.tally = stepper, exchange.units, max_halvings, tally
 
     def step(self, t: float, H: float, depth: int = 0) -> Outcome:
-        with Snapshot(self.units) as start:
+        with Snapshot(self.units, self.stepper) as start:
             outcome = self.stepper.step(t, H)
             if outcome.status != DISCARD or depth >= self.max_halvings:
                 return outcome
@@ -111,7 +111,7 @@ class StepDoubling:
         while t < t_end:
             last = h >= t_end - t
             step = t_end - t if last else h
-            with Snapshot(self.units) as start:
+            with Snapshot(self.units, self.stepper) as start:
                 outcome = self.stepper.step(t, step)
                 if outcome.status != DISCARD:
                     full = self._outputs()

@@ -116,6 +116,7 @@ class PowerBonds:
         self.exchange = exchange
         units = exchange.units
         index = {u.name: k for k, u in enumerate(units)}
+        system.check_bonds()
         self.ports: list[_Port] = []
         for bond in system.bonds:
             force, velocity, position = system.bond_connections(bond)
@@ -124,8 +125,11 @@ class PowerBonds:
                                     receiver.real_outputs.index(velocity.output), index[force.source],
                                     source.real_outputs.index(force.output), source.inputs.index(velocity),
                                     None if position is None else source.inputs.index(position)))
-        self.resets = [_Reset(units[k], [i for i, p in enumerate(self.ports) if p.source == k], self.ports,
-                              system.bonds) for k in sorted({p.source for p in self.ports if p.position_in is not None})]
+        with_position: dict[int, list[int]] = {}  # source -> its ports that name a position
+        for i, p in enumerate(self.ports):
+            if p.position_in is not None:
+                with_position.setdefault(p.source, []).append(i)
+        self.resets = [_Reset(units[k], ports, self.ports, system.bonds) for k, ports in with_position.items()]
         self.created = np.zeros(len(self.ports))  # energy each bond created over the run so far [J]
         self.last = 0.0  # all bonds together, in the last macro step
         self.last_magnitude = 0.0  # the sum of each bond's |energy| in the last macro step
@@ -219,6 +223,19 @@ class BondedStep:
         self.bonds.created += created
         self.pending += self.bonds.last + returned
         return outcome
+
+    def bookkeeping(self) -> tuple:
+        """What a rollback (step doubling, retry after a discard) restores besides the FMU states."""
+        bonds = self.bonds
+        return (self.pending, bonds.created.copy(), bonds.last, bonds.last_magnitude,
+                [reset.moved for reset in bonds.resets])
+
+    def restore_bookkeeping(self, kept: tuple) -> None:
+        bonds = self.bonds
+        self.pending, created, bonds.last, bonds.last_magnitude, moved = kept
+        bonds.created[:] = created
+        for reset, where in zip(bonds.resets, moved):
+            reset.moved = where
 
     def _returned(self, H: float) -> float:
         """The work the corrections set for this step will do (negative: energy taken out),

@@ -66,6 +66,10 @@ class MasterOptions:
         if self.tolerance is not None and self.energy_tol is not None:
             raise HarnessError("--tolerance (step doubling) and --energy-tolerance each choose the macro steps: "
                                "give one of them")
+        if self.tolerance is not None and self.energy_correction:
+            raise HarnessError("--energy-correction does not combine with --tolerance: step doubling compares one "
+                               "step with two halves, and the correction's forces, which hand back energy over "
+                               "later steps, are no error of either")
         if self.energy_tol is not None and self.on_discard == "retry":
             raise HarnessError("--energy-tolerance chooses the macro steps without rollback; it does not combine with "
                                "--on-discard retry")

@@ -302,8 +302,10 @@ def load_ssp(path: Path) -> System:
         info = getattr(system, "simulationInformation", None)
         if info is not None and getattr(info, "fixedStepMaster", None) is not None:
             step = _number(info.fixedStepMaster.stepSize, f"{what}: FixedStepMaster stepSize")
-        return System(ssd.name or path.stem, components, connections, stop, step, workspace=workspace, origin=what,
-                      bonds=bonds)
+        system = System(ssd.name or path.stem, components, connections, stop, step, workspace=workspace,
+                        origin=what, bonds=bonds)
+        system.check_bonds()
+        return system
     except BaseException:
         if workspace is not None:
             shutil.rmtree(workspace, ignore_errors=True)

@@ -138,6 +138,29 @@ class System:
             found.append(back[0])
         return force, found[0], found[1]
 
+    def check_bonds(self) -> None:
+        """Every bond is one (`bond_connections`), no force input is in two, and between a force's
+        source and the component it pushes the bonds name every output the source reads from it, so
+        that they account for all the energy that passes (a Spring that reads a point's position
+        needs it named as the third element). A HarnessError naming the first that is not so."""
+        where = f"{self.origin or self.name}: power bond"
+        named: dict[tuple[str, str], set[str]] = {}
+        seen: set[tuple[str, str]] = set()
+        for bond in self.bonds:
+            force, _, _ = self.bond_connections(bond)
+            if (bond.component, bond.force) in seen:
+                raise HarnessError(f"{where} {bond}: {bond.component}.{bond.force} is in another bond already")
+            seen.add((bond.component, bond.force))
+            named.setdefault((bond.component, force.source), set()).update(
+                output for output in (bond.velocity, bond.position) if output is not None)
+        for (receiver, source), outputs in named.items():
+            read = [c.output for c in self.connections if (c.source, c.target) == (receiver, source)]
+            missing = [output for output in read if output not in outputs]
+            if missing:
+                raise HarnessError(f"{where}s between {receiver} and {source}: {source} reads {receiver}."
+                                   f"{missing[0]}, which no bond names (a position goes third: "
+                                   f"[force, velocity, position])")
+
     def tolerance(self) -> float | None:
         """The position tolerance in metres the scene asks for (pixels through the camera's scale)."""
         if "position" in self.accuracy:

@@ -147,11 +147,15 @@ class Unit:
 
 
 class Snapshot:
-    """Every unit's FMU state and exchanged values at one moment, to roll back to. Released when the
-    `with` block ends, whatever happens inside it, so no state outlives its use."""
+    """Every unit's FMU state and exchanged values at one moment, to roll back to, with the
+    bookkeeping of the stepper the rollback repeats (`bookkeeping()` / `restore_bookkeeping()`, where
+    it keeps any: the energy the power bonds measured). Released when the `with` block ends, whatever
+    happens inside it, so no state outlives its use."""
 
-    def __init__(self, units: list[Unit]):
+    def __init__(self, units: list[Unit], stepper=None):
         self.units = units
+        self.stepper = stepper if hasattr(stepper, "bookkeeping") else None
+        self.kept = self.stepper.bookkeeping() if self.stepper else None
         self.states: list[ctypes.c_void_p] = []
         try:
             for unit in units:
@@ -165,6 +169,8 @@ class Snapshot:
         for unit, state, (y, dy) in zip(self.units, self.states, self.values):
             unit.restore(state)
             unit.y_now[:], unit.dy_now[:] = y, dy
+        if self.stepper:
+            self.stepper.restore_bookkeeping(self.kept)
 
     def release(self) -> None:
         states, self.states = self.states, []
