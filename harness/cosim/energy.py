@@ -32,9 +32,8 @@ O(H^2).
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
-
 import ctypes
+from dataclasses import dataclass
 
 import numpy as np
 
