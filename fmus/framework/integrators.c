@@ -359,6 +359,7 @@ static int64_t implicit_loop(RightHandSide *f, int mode, const ButcherTableau *t
     return n;
 }
 
+#if SPLIT_ACCELERATIONS /* only the models whose accelerations split off the damping use them */
 /* The accelerations a(t, q) of a model whose accelerations are a(t, q) - d v (SPLIT_ACCELERATIONS):
  * the right-hand side at zero velocities, in g[N_COORDINATES ...]. */
 ENGINE_INLINE void accelerations(const Evaluator *e, int mode, double t, const double *x, double *g)
@@ -401,6 +402,7 @@ ENGINE_INLINE int64_t stormer_verlet_loop(RightHandSide *f, int mode, double *x,
     }
     return n;
 }
+#endif
 
 const ButcherTableau *tableau_of(int solver)
 {

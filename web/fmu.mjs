@@ -1,0 +1,135 @@
+// An FMI 2.0 Co-Simulation importer for the FMUs built to WebAssembly (build/wasm/<id>.wasm, one
+// module per object): it calls the module's fmi2* functions exactly as a C importer calls a shared
+// library's, with strings and arrays in the module's memory. Works in Node and in a browser: the
+// module needs only three WASI functions (fd_write, fd_seek, fd_close: its C library's stdio, which
+// the FMUs never use), so where no WASI is at hand a stub answering "bad file" serves.
+
+const STATUS = ["OK", "Warning", "Discard", "Error", "Fatal", "Pending"];
+const CO_SIMULATION = 1;
+
+/** WASI imports for a module that writes no file: every call answers EBADF (8). */
+export function wasiStub() {
+  const badFile = () => 8;
+  return { wasi_snapshot_preview1: { fd_write: badFile, fd_seek: badFile, fd_close: badFile } };
+}
+
+export class FmuModule {
+  /** Compiles and instantiates the module's bytes. `wasiImports` (Node's WASI getImportObject(),
+   * or wasiStub()) and `initialize` (Node's wasi.initialize, or null: _initialize is then called
+   * directly) come from the host. */
+  static async load(bytes, { wasiImports = wasiStub(), initialize = null } = {}) {
+    const module_ = new FmuModule();
+    const imports = { ...wasiImports, env: { fmi_log: (...args) => module_.log(...args) } };
+    const { instance } = await WebAssembly.instantiate(bytes, imports);
+    if (initialize) initialize(instance);
+    else instance.exports._initialize();
+    module_.exports = instance.exports;
+    module_.messages = [];
+    return module_;
+  }
+
+  get memory() {
+    return this.exports.memory.buffer; // the buffer changes when the memory grows: never keep it
+  }
+
+  log(status, instance, category, message) {
+    this.messages.push(`[${STATUS[status] ?? status}] ${this.string(instance)}: ${this.string(message)}`);
+  }
+
+  string(pointer) {
+    const bytes = new Uint8Array(this.memory, pointer);
+    return new TextDecoder().decode(bytes.subarray(0, bytes.indexOf(0)));
+  }
+
+  /** A NUL-terminated copy of text in the module's memory (freed by the caller). */
+  cString(text) {
+    const encoded = new TextEncoder().encode(text);
+    const pointer = this.exports.malloc(encoded.length + 1);
+    new Uint8Array(this.memory, pointer, encoded.length + 1).set([...encoded, 0]);
+    return pointer;
+  }
+
+  /** An instance of the model (fmi2Instantiate), or throws with the FMU's message. */
+  instantiate(name, guid, loggingOn = false) {
+    const namePointer = this.cString(name), guidPointer = this.cString(guid), resources = this.cString("");
+    const component = this.exports.fmi2Instantiate(namePointer, CO_SIMULATION, guidPointer, resources,
+                                                   this.exports.importer_callbacks(), 0, loggingOn ? 1 : 0);
+    [namePointer, guidPointer, resources].forEach((p) => this.exports.free(p));
+    if (!component) throw new Error(`fmi2Instantiate failed: ${this.messages.at(-1) ?? "no message"}`);
+    return new FmuInstance(this, component);
+  }
+}
+
+/** One fmi2Component with preallocated exchange buffers. */
+export class FmuInstance {
+  constructor(module_, component) {
+    this.module = module_;
+    this.fmi = module_.exports;
+    this.component = component;
+    this.capacity = 0;
+  }
+
+  /** The value references vrs in the module's memory, with room for as many values. */
+  prepare(vrs) {
+    if (vrs.length > this.capacity) {
+      if (this.capacity) ["vrs", "doubles", "ints", "orders"].forEach((k) => this.fmi.free(this[k]));
+      this.capacity = Math.max(vrs.length, 16);
+      this.vrs = this.fmi.malloc(4 * this.capacity);
+      this.doubles = this.fmi.malloc(8 * this.capacity);
+      this.ints = this.fmi.malloc(4 * this.capacity);
+      this.orders = this.fmi.malloc(4 * this.capacity);
+    }
+    new Uint32Array(this.module.memory, this.vrs, vrs.length).set(vrs);
+  }
+
+  call(name, ...args) {
+    return this.fmi[name](this.component, ...args);
+  }
+
+  setReal(vrs, values) {
+    this.prepare(vrs);
+    new Float64Array(this.module.memory, this.doubles, vrs.length).set(values);
+    return this.call("fmi2SetReal", this.vrs, vrs.length, this.doubles);
+  }
+
+  getReal(vrs) { // [status, Float64Array copy]
+    this.prepare(vrs);
+    const status = this.call("fmi2GetReal", this.vrs, vrs.length, this.doubles);
+    return [status, new Float64Array(this.module.memory, this.doubles, vrs.length).slice()];
+  }
+
+  setInteger(vrs, values) {
+    this.prepare(vrs);
+    new Int32Array(this.module.memory, this.ints, vrs.length).set(values);
+    return this.call("fmi2SetInteger", this.vrs, vrs.length, this.ints);
+  }
+
+  setInputDerivatives(vrs, values) { // first-order slopes
+    this.prepare(vrs);
+    new Int32Array(this.module.memory, this.orders, vrs.length).fill(1);
+    new Float64Array(this.module.memory, this.doubles, vrs.length).set(values);
+    return this.call("fmi2SetRealInputDerivatives", this.vrs, vrs.length, this.orders, this.doubles);
+  }
+
+  getOutputDerivatives(vrs) { // [status, Float64Array copy]
+    this.prepare(vrs);
+    new Int32Array(this.module.memory, this.orders, vrs.length).fill(1);
+    const status = this.call("fmi2GetRealOutputDerivatives", this.vrs, vrs.length, this.orders, this.doubles);
+    return [status, new Float64Array(this.module.memory, this.doubles, vrs.length).slice()];
+  }
+
+  setupExperiment(start = 0) {
+    return this.call("fmi2SetupExperiment", 0, 0.0, start, 0, 0.0);
+  }
+
+  enterInitialization() { return this.call("fmi2EnterInitializationMode"); }
+  exitInitialization() { return this.call("fmi2ExitInitializationMode"); }
+  doStep(t, h) { return this.call("fmi2DoStep", t, h, 1); }
+  reset() { return this.call("fmi2Reset"); }
+
+  free() {
+    this.call("fmi2FreeInstance");
+    if (this.capacity) ["vrs", "doubles", "ints", "orders"].forEach((k) => this.fmi.free(this[k]));
+    this.capacity = 0;
+  }
+}
