@@ -192,7 +192,9 @@ def command_run(args: argparse.Namespace) -> int:
           + (f", {result.retries} retried steps" if result.retries else "")
           + (f", {result.iterations} iteration passes ({result.unconverged} unconverged)" if args.iterate else "")
           + (f"; the power bonds created {sum(result.bond_energy.values()):.3e} J"
-             + (" before correction" if args.energy_correction else "") if result.bond_energy else ""))
+             + (" before correction" if args.energy_correction else "")
+             + f" (the energy at the end less that at the start: {result.energy[-1] - result.energy[0]:.3e} J)"
+             if result.bond_energy and len(result.energy) else ""))
     if scene is not None:
         print(f"wrote {reference}: the derived monolithic reference ({scene.evaluations} evaluations of its "
               f"{len(scene.start)} states)")
@@ -304,8 +306,9 @@ def command_chart(args: argparse.Namespace) -> int:
         with load_system(args.system or PROJECT_ROOT / "scenes" / "coupled_pendulums.json") as system:
             points = coupling_sweep(system, stop=args.stop, repeats=args.repeats, scheduler=args.scheduler,
                                     workers=args.workers)
+            title = system.name[:1].upper() + system.name[1:]
         write_csv(points, out / "coupling.csv")
-        written = [out / "coupling.csv", *coupling_chart(points, out)]
+        written = [out / "coupling.csv", *coupling_chart(points, out, title)]
         for name in dict.fromkeys(p.configuration for p in points):
             mine = [p for p in points if p.configuration == name]
             print(f"{name:32s} " + "  ".join(f"H={p.step:g}: {p.error:.1e} m" for p in mine))

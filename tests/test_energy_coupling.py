@@ -206,3 +206,21 @@ def test_a_rollback_takes_back_what_the_bonds_measured(fmu_paths):
                 start.restore()
             assert bonded.pending == before[0] and np.array_equal(master.bonds.created, before[1])
             assert all(r.moved is m for r, m in zip(master.bonds.resets, before[2]))
+
+
+def test_the_summary_gives_the_bonds_energy_beside_the_drift_at_the_end(fmu_paths, tmp_path, capsys):
+    """The largest |E(t) - E(0)| and the bonds' signed energy are different measures: the summary
+    also prints the signed change from start to end, which the CSV's energies give."""
+    import csv
+    import re
+    out = tmp_path / "run.csv"
+    assert main(["run", str(SCENES / "coupled_pendulums.json"), "--stop", "2", "--energy-tolerance", "1e9",
+                 "--out", str(out), "--quiet"]) == 0
+    printed = capsys.readouterr().out
+    created, change = (float(x) for x in re.search(r"power bonds created (\S+) J \(the energy at the end less "
+                                                     r"that at the start: (\S+) J\)", printed).groups())
+    with open(out, newline="") as table:
+        rows = list(csv.DictReader(table))
+    energy = [float(r["left.E"]) + float(r["right.E"]) + float(r["spring.E_pot"]) for r in (rows[0], rows[-1])]
+    assert change == pytest.approx(energy[1] - energy[0], rel=1e-3, abs=1e-12)
+    assert created == pytest.approx(change, rel=0.05)  # measured: the whole drift

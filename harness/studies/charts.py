@@ -154,7 +154,7 @@ def stability_charts(limits, cases, tables: dict, out: Path) -> list[Path]:
     return paths + save(figure, out, "stability-limits")
 
 
-def coupling_chart(points, out: Path) -> list[Path]:
+def coupling_chart(points, out: Path, scene: str = "Coupled pendulums") -> list[Path]:
     """Coupling error against the communication step, against fmi2DoStep calls and against seconds.
     (The CSV also has the right-hand-side evaluations: with the scene's fixed internal step they
     change only with the passes a step takes, not with H.)"""
@@ -184,7 +184,7 @@ def coupling_chart(points, out: Path) -> list[Path]:
         ax.set_xlabel(label)
         ax.set_ylabel("largest bob position error [m]")
     axes[0].legend(fontsize=8)
-    figure.suptitle("Coupled pendulums: master configurations against a monolithic reference")
+    figure.suptitle(f"{scene}: master configurations against a monolithic reference")
     figure.tight_layout()
     return save(figure, out, "coupling")
 
