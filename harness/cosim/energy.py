@@ -84,6 +84,7 @@ class _Reset:
         self.sensitivity = np.zeros(len(ports))
         self.derivative = unit.instance.raw.directional()
         self.moved: tuple | None = None  # where the last step took the positions, velocities and slopes
+        self.held = np.zeros(len(ports))  # the slopes of held inputs
 
     def _along(self, positions: np.ndarray, velocities: np.ndarray) -> np.ndarray:
         """The change of the forces along a change of the position and velocity inputs."""
@@ -98,7 +99,7 @@ class _Reset:
         its rate in columns 1 and 3) and `jumps` (the energy it changed), per port."""
         unit = self.unit
         positions, velocities = unit.u_view[self.position_in], unit.u_view[self.velocity_in]
-        slopes = unit.du_view[self.velocity_in] if linear else np.zeros(len(self.ports))
+        slopes = unit.du_view[self.velocity_in] if linear else self.held
         if self.moved is not None:
             dp, dv, da = positions - self.moved[0], velocities - self.moved[1], slopes - self.moved[2]
             jumps[self.ports] = -start[self.ports, 1] * dp
@@ -115,10 +116,8 @@ class PowerBonds:
         self.exchange = exchange
         units = exchange.units
         index = {u.name: k for k, u in enumerate(units)}
-        system.check_bonds()
         self.ports: list[_Port] = []
-        for bond in system.bonds:
-            force, velocity, position = system.bond_connections(bond)
+        for force, velocity, position in system.check_bonds():
             receiver, source = units[index[force.target]], units[index[force.source]]
             self.ports.append(_Port(index[force.target], receiver.inputs.index(force),
                                     receiver.real_outputs.index(velocity.output), index[force.source],

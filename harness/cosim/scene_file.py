@@ -244,7 +244,5 @@ def load_scene_file(path: Path) -> System:
     camera = read.object(data.get("camera", {}), "\"camera\"", CAMERA_KEYS)
     accuracy = {k: read.positive(v, f"\"accuracy\": {k!r}") for k, v in accuracy.items()}
     camera = {k: read.positive(v, f"\"camera\": {k!r}") for k, v in camera.items()}
-    system = System(name, components, connections, stop, step, accuracy, camera, traces, origin=str(path),
-                    bonds=bonds)
-    system.check_bonds()
-    return system
+    return System(name, components, connections, stop, step, accuracy, camera, traces, origin=str(path),
+                  bonds=bonds)

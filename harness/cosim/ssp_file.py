@@ -302,10 +302,8 @@ def load_ssp(path: Path) -> System:
         info = getattr(system, "simulationInformation", None)
         if info is not None and getattr(info, "fixedStepMaster", None) is not None:
             step = _number(info.fixedStepMaster.stepSize, f"{what}: FixedStepMaster stepSize")
-        system = System(ssd.name or path.stem, components, connections, stop, step, workspace=workspace,
-                        origin=what, bonds=bonds)
-        system.check_bonds()
-        return system
+        return System(ssd.name or path.stem, components, connections, stop, step, workspace=workspace, origin=what,
+                      bonds=bonds)
     except BaseException:
         if workspace is not None:
             shutil.rmtree(workspace, ignore_errors=True)

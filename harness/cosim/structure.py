@@ -138,16 +138,19 @@ class System:
             found.append(back[0])
         return force, found[0], found[1]
 
-    def check_bonds(self) -> None:
-        """Every bond is one (`bond_connections`), no force input is in two, and between a force's
-        source and the component it pushes the bonds name every output the source reads from it, so
-        that they account for all the energy that passes (a Spring that reads a point's position
-        needs it named as the third element). A HarnessError naming the first that is not so."""
+    def check_bonds(self) -> list[tuple[Connection, Connection, Connection | None]]:
+        """Every bond is one (`bond_connections`, whose connections it returns per bond), no force
+        input is in two, and between a force's source and the component it pushes the bonds name
+        every output the source reads from it, so that they account for all the energy that passes
+        (a Spring that reads a point's position needs it named as the third element). A HarnessError
+        naming the first that is not so."""
         where = f"{self.origin or self.name}: power bond"
         named: dict[tuple[str, str], set[str]] = {}
         seen: set[tuple[str, str]] = set()
+        found = []
         for bond in self.bonds:
-            force, _, _ = self.bond_connections(bond)
+            found.append(self.bond_connections(bond))
+            force = found[-1][0]
             if (bond.component, bond.force) in seen:
                 raise HarnessError(f"{where} {bond}: {bond.component}.{bond.force} is in another bond already")
             seen.add((bond.component, bond.force))
@@ -160,6 +163,7 @@ class System:
                 raise HarnessError(f"{where}s between {receiver} and {source}: {source} reads {receiver}."
                                    f"{missing[0]}, which no bond names (a position goes third: "
                                    f"[force, velocity, position])")
+        return found
 
     def tolerance(self) -> float | None:
         """The position tolerance in metres the scene asks for (pixels through the camera's scale)."""

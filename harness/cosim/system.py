@@ -22,6 +22,10 @@ def load_system(path: str | Path) -> System:
         raise HarnessError(f"{path}: no such file or folder")
     if not (path.is_file() or path.is_dir()):  # reading a pipe or a device could block or never end
         raise HarnessError(f"{path}: is not a regular file or a folder")
-    if path.suffix == ".json":
-        return load_scene_file(path)
-    return load_ssp(path)
+    system = load_scene_file(path) if path.suffix == ".json" else load_ssp(path)
+    try:  # checked as the file is read: a run or an export refuses the bonds the energy coupling would
+        system.check_bonds()
+    except BaseException:
+        system.close()
+        raise
+    return system
