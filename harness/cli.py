@@ -151,6 +151,15 @@ def command_demo(args: argparse.Namespace) -> int:
     return 0 if report.passed else 1
 
 
+def command_view(args: argparse.Namespace) -> int:
+    from harness.view.page import write_view
+    page = write_view(args.scene, args.out)
+    sizes = ", ".join(f"{name} {size / 1024:.0f} KB" for name, size in page.modules.items())
+    print(f"wrote {page.path} ({page.bytes / 1024:.0f} KB; WebAssembly modules: {sizes}): open it in a browser, "
+          f"or serve the folder with python -m http.server")
+    return 0
+
+
 def command_run(args: argparse.Namespace) -> int:
     from harness.cosim.master import Master, MasterOptions
     from harness.cosim.system import load_system
@@ -461,6 +470,12 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--out", default=".", help="folder for the FMU (default: the current one)")
     p.add_argument("--quiet", action="store_true", help="no progress lines on stderr")
     p.set_defaults(run=command_derive)
+
+    p = sub.add_parser("view", help="the scene live in a browser: DIR/index.html, self-contained (drag, pause, step, "
+                                     "methods; index.html?check=T runs T seconds headless)")
+    p.add_argument("scene", help="a scene file (.json) or an SSP (.ssp, .ssd, folder)")
+    p.add_argument("--out", default="view", help="folder for index.html (default view/)")
+    p.set_defaults(run=command_view)
 
     p = sub.add_parser("demo", help="the main job: thesis scene, coupled scene, plan, validation, charts -> DIR/index.html")
     p.add_argument("--out", default="out", help="output folder (default out/)")

@@ -18,7 +18,7 @@ LAYERS = {
     "objects": 1, "fmi": 1,
     "cosim": 2,
     "studies": 3,
-    "scene": 4,
+    "scene": 4, "view": 4,
     "cli": 5, "__main__": 5, "__init__": 5,
 }
 

@@ -77,7 +77,7 @@ def in_wasm(path, request: dict, tmp_path) -> list[tuple[str, np.ndarray]]:
 
 def request_for(instance: FmuInstance, runs: list[dict], outputs: list[str]) -> dict:
     def encoded(start: dict, floats: bool) -> dict:
-        values = {name: instance._encode(name, value) for name, value in start.items()}
+        values = {name: instance.encode(name, value) for name, value in start.items()}
         return {str(instance.reference(name)): value for name, value in values.items()
                 if isinstance(value, float) == floats}
     return {"guid": instance.model_description.guid,

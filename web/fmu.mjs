@@ -104,6 +104,18 @@ export class FmuInstance {
     return this.call("fmi2SetInteger", this.vrs, vrs.length, this.ints);
   }
 
+  getInteger(vrs) { // [status, Int32Array copy]
+    this.prepare(vrs);
+    const status = this.call("fmi2GetInteger", this.vrs, vrs.length, this.ints);
+    return [status, new Int32Array(this.module.memory, this.ints, vrs.length).slice()];
+  }
+
+  setBoolean(vrs, values) { // fmi2Boolean is an int
+    this.prepare(vrs);
+    new Int32Array(this.module.memory, this.ints, vrs.length).set(values);
+    return this.call("fmi2SetBoolean", this.vrs, vrs.length, this.ints);
+  }
+
   setInputDerivatives(vrs, values) { // first-order slopes
     this.prepare(vrs);
     new Int32Array(this.module.memory, this.orders, vrs.length).fill(1);

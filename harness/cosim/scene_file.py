@@ -13,7 +13,7 @@ a one-line HarnessError naming the file and the place.
       "connections": [["left.x", "spring.a_x"], ["spring.Fa_x", "left.F_x"]],
       "bonds": [["left.F_x", "left.v_x", "left.x"], ["left.F_y", "left.v_y", "left.y"]],
       "accuracy": {"position": 0.001},
-      "camera": {"scale": 200, "frame_rate": 25}
+      "camera": {"scale": 200, "frame_rate": 25, "layout": "together"}
     }
 
 "fmu" is one of the project's FMU names (built on demand; "fmi3/SimplePendulum" names the FMI 3.0
@@ -23,7 +23,9 @@ order listed (this is the Gauss-Seidel order). "bonds" declares power bonds, eac
 force input, the velocity output at the same point and, where the force's source also reads the
 point's position, that position output (the force's source must read them): the master's
 energy-conserving coupling measures the energy each bond creates. "accuracy"
-holds "position" (metres) or "pixels" (through the camera's scale).
+holds "position" (metres) or "pixels" (through the camera's scale). The camera's "layout" is how the
+live view (`harness view`) draws the scene: "together" (the default) in one picture, or "side by
+side", each group of coupled components in a panel of its own, like the thesis's figures.
 """
 from __future__ import annotations
 
@@ -41,7 +43,8 @@ MAX_SCENE_BYTES = 16 << 20
 SCENE_KEYS = ("name", "description", "stop", "step", "components", "connections", "bonds", "accuracy", "camera")
 COMPONENT_KEYS = ("fmu", "start", "traces")
 ACCURACY_KEYS = ("position", "pixels")
-CAMERA_KEYS = ("scale", "frame_rate")
+CAMERA_KEYS = ("scale", "frame_rate", "layout")
+LAYOUTS = ("together", "side by side")  # the live view: one picture, or one panel per group of coupled components
 
 
 class _Reader:
@@ -190,8 +193,7 @@ def load_scene_file(path: Path) -> System:
     read = _Reader(path)
     data = read.object(read_json(path), "the scene", SCENE_KEYS)
     name = read.text(data.get("name", path.stem), "\"name\"")
-    if "description" in data:
-        read.text(data["description"], "\"description\"")
+    description = read.text(data["description"], "\"description\"") if "description" in data else ""
     stop = read.positive(data["stop"], "\"stop\"") if "stop" in data else None
     step = read.positive(data["step"], "\"step\"") if "step" in data else None
     if "components" not in data:
@@ -243,6 +245,11 @@ def load_scene_file(path: Path) -> System:
         raise read.fail("\"accuracy\"", "takes \"position\" or \"pixels\", not both")
     camera = read.object(data.get("camera", {}), "\"camera\"", CAMERA_KEYS)
     accuracy = {k: read.positive(v, f"\"accuracy\": {k!r}") for k, v in accuracy.items()}
+    layout = camera.pop("layout", None)
+    if layout is not None and layout not in LAYOUTS:
+        raise read.fail("\"camera\": 'layout'", f"{_short(layout)} must be one of {', '.join(map(repr, LAYOUTS))}")
     camera = {k: read.positive(v, f"\"camera\": {k!r}") for k, v in camera.items()}
+    if layout is not None:
+        camera["layout"] = layout
     return System(name, components, connections, stop, step, accuracy, camera, traces, origin=str(path),
-                  bonds=bonds)
+                  bonds=bonds, description=description)

@@ -72,6 +72,7 @@ class System:
     workspace: Path | None = field(default=None, repr=False, compare=False)
     origin: str = field(default="", repr=False, compare=False)  # the file it was read from, for messages
     bonds: list[Bond] = field(default_factory=list)  # power bonds, checked where the energy coupling uses them
+    description: str = ""  # free text (scene files)
 
     def __post_init__(self) -> None:
         self._remove_workspace = (weakref.finalize(self, shutil.rmtree, self.workspace, True)

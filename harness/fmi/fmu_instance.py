@@ -245,7 +245,7 @@ class FmuInstance:
             items = self._items[variable.name] = {item.name: int(item.value) for item in variable.declaredType.items}
         return items
 
-    def _encode(self, name: str, value) -> int | float:
+    def encode(self, name: str, value) -> int | float:
         """The value as the FMI type of the variable: a number for a float (a numeric string is read),
         an integer in the type's range for an integer or enumeration (an enumeration also by item
         name, a Boolean also as true or false), read exactly. Anything else is a HarnessError naming
@@ -278,7 +278,7 @@ class FmuInstance:
         worst = OK
         raw = self.raw
         for name, value in values.items():
-            encoded = self._encode(name, value)
+            encoded = self.encode(name, value)
             scalar = scalar_type(self.version, self.variables[name])
             vr = ctypes.c_uint(self.reference(name))
             status = raw.values(scalar, True)(raw.component, ctypes.byref(vr), 1, ctypes.byref(scalar.c_type(encoded)))

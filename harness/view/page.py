@@ -1,0 +1,165 @@
+"""`harness view SCENE --out DIR`: the scene live in a browser, as one self-contained page.
+
+DIR/index.html holds everything it needs, nothing from the network: the WebAssembly module of
+each FMU the scene names (built from the sources the FMU carries, harness.view.wasm), what the
+page knows of each FMU (value references, outputs, methods, and from the object file it carries
+the points to draw and the coordinates a drag sets), the scene, and the JavaScript of web/ (the
+FMI importer, the master, the drag, the exact pendulum, the page), joined into one script. It
+works opened as a file and served by `python -m http.server`. Loaded as index.html?check=T it runs
+the scene for T seconds without drawing and writes the final state into <pre id="check">.
+"""
+from __future__ import annotations
+
+import base64
+import html
+import json
+import re
+from dataclasses import dataclass
+from pathlib import Path
+
+from harness.cosim.system import System, load_system
+from harness.errors import HarnessError, where
+from harness.fmi.fmu_instance import FmuInstance, read_description
+from harness.objects.proof import object_file_in
+from harness.output import output_folder, written
+from harness.view.wasm import WEB, build_modules
+
+# The page's script: web/ modules in dependency order, joined (their relative imports dropped).
+SCRIPTS = ("fmu.mjs", "exact.mjs", "master.mjs", "pose.mjs", "view.mjs")
+TEMPLATE = "view.html"
+# The objects whose motion is known exactly (web/exact.mjs): the page shows their error live.
+EXACT = {"SimplePendulum": "simple pendulum"}
+
+
+@dataclass
+class ViewPage:
+    path: Path                   # DIR/index.html
+    bytes: int                   # its size
+    modules: dict[str, int]      # model identifier -> size of its WebAssembly module [bytes]
+
+
+def write_view(scene: str | Path, out: str | Path) -> ViewPage:
+    """Writes DIR/index.html for the scene (a scene file or an SSP); see the module's note."""
+    if Path(out).exists() and not Path(out).is_dir():
+        raise HarnessError(f"--out {out}: is a file, not a folder")
+    with load_system(scene) as system:
+        if system.step is None:
+            raise HarnessError(f"{scene}: the live view steps the scene at its communication step: give \"step\"")
+        fmus = list(dict.fromkeys(c.fmu for c in system.components))
+        modules = build_modules(fmus)
+        keys = _module_keys(fmus)
+        payload = _payload(system, {keys[f]: _module(f, modules[f]) for f in fmus}, keys)
+    text = _page(payload)
+    path = output_folder(out, "--out") / "index.html"  # made only now: a refused scene leaves no folder
+    with written(path) as sink:
+        sink.write(text)
+    return ViewPage(path, len(text.encode()), {payload["modules"][keys[f]]["identifier"]: len(modules[f]) for f in fmus})
+
+
+def _module_keys(fmus: list[Path]) -> dict[Path, str]:
+    """A name per FMU file: its model identifier, numbered where two files share one."""
+    keys: dict[Path, str] = {}
+    for fmu in fmus:
+        identifier = read_description(fmu).coSimulation.modelIdentifier
+        key, n = identifier, 1
+        while key in keys.values():
+            n += 1
+            key = f"{identifier}_{n}"
+        keys[fmu] = key
+    return keys
+
+
+def _kind(variable) -> str:
+    return {"Real": "real", "Integer": "integer", "Enumeration": "integer", "Boolean": "boolean"}.get(variable.type, "")
+
+
+def _module(fmu: Path, wasm: bytes) -> dict:
+    """What the page knows of one FMU."""
+    md = read_description(fmu)
+    variables = md.modelVariables
+    by_name = {v.name: v for v in variables}
+    outputs = [v for v in variables if v.causality == "output"]
+    spec = object_file_in(fmu)
+    solver = by_name.get("solver")
+    module = {
+        "identifier": md.coSimulation.modelIdentifier,
+        "guid": md.guid,
+        "wasm": base64.b64encode(wasm).decode("ascii"),
+        "variables": {v.name: [v.valueReference, _kind(v), v.causality] for v in variables if _kind(v)},
+        "real_outputs": [v.name for v in outputs if v.type == "Real"],
+        "integer_outputs": [v.name for v in outputs if v.type in ("Integer", "Enumeration")],
+        "solvers": [[item.name, int(item.value), item.description or ""] for item in solver.declaredType.items]
+        if solver is not None and solver.declaredType is not None and solver.type == "Enumeration" else [],
+        "defaults": {v.name: _number(v) for v in variables if _kind(v) and v.start is not None},
+        "energy": next((n for n in ("E", "E_pot") if n in by_name and by_name[n].causality == "output"), None),
+        "exact": EXACT.get(md.coSimulation.modelIdentifier),
+        "coordinates": [], "points": [], "anchor": None, "spring_ends": [],
+    }
+    if spec is not None:
+        module["coordinates"] = [[c.name, c.velocity] for c in spec.coordinates]
+        module["points"] = [[p.outputs["x"], p.outputs["y"], p.velocity] for p in spec.points
+                            if "x" in p.outputs and "y" in p.outputs]
+        if {"anchor_x", "anchor_y"} <= {p.name for p in spec.parameters}:
+            module["anchor"] = ["anchor_x", "anchor_y"]
+    else:  # an element such as the Spring: drawn between the points that feed its <end>_x, <end>_y inputs
+        inputs = {v.name for v in variables if v.causality == "input" and v.type == "Real"}
+        module["spring_ends"] = [[name, name[:-2] + "_y"] for name in sorted(inputs)
+                                 if name.endswith("_x") and name[:-2] + "_y" in inputs]
+    return module
+
+
+def _number(variable) -> float | int:
+    value = variable.start
+    if variable.type == "Real":
+        return float(value)
+    if variable.type == "Enumeration" and not re.fullmatch(r"-?\d+", str(value)):
+        return int(next(item.value for item in variable.declaredType.items if item.name == value))
+    return int(value)
+
+
+def _payload(system: System, modules: dict[str, dict], keys: dict[Path, str]) -> dict:
+    components = []
+    for component in system.components:
+        # the start values, encoded as the FMU takes them, and checked by starting the native FMU once
+        with where(system.origin), where(f"component {component.name!r}"), \
+                FmuInstance(component.fmu, name=component.name) as instance:
+            start = {name: instance.encode(name, value) for name, value in component.start.items()}
+            unknown = [name for name in start if _kind(instance.variables[name]) == ""]
+            if unknown:
+                raise HarnessError(f"start values of type {instance.variables[unknown[0]].type} ({', '.join(unknown)}) "
+                                   "cannot be set in the live view")
+            instance.initialize(0.0, **component.start)
+        components.append({"name": component.name, "module": keys[component.fmu], "start": start,
+                           "traces": [list(pair) for pair in system.traces.get(component.name, [])]})
+    camera = system.camera
+    frame_rate = float(camera.get("frame_rate", min(60.0, max(10.0, 1.0 / system.step))))
+    return {
+        "name": system.name, "description": system.description,
+        "step": system.step, "stop": system.stop, "frame_rate": frame_rate, "scale": camera.get("scale"),
+        "layout": camera.get("layout", "together"),
+        "algorithm": "gauss-seidel", "extrapolation": "linear",
+        "modules": modules, "components": components,
+        "connections": [[c.source, c.output, c.target, c.input] for c in system.connections],
+    }
+
+
+def bundled_script() -> str:
+    """web/'s modules as one script for an inline <script type="module">: each file's imports of
+    the others dropped and its exports made plain declarations (the files are written so that this
+    is all joining them takes)."""
+    parts = []
+    for name in SCRIPTS:
+        text = (WEB / name).read_text()
+        text = re.sub(r'^import [^;]*? from "\./[\w.]+\.mjs";\n', "", text, flags=re.MULTILINE)
+        text = re.sub(r"^export (?=(async )?(function|class|const|let)\b)", "", text, flags=re.MULTILINE)
+        parts.append(f"// ---- web/{name}\n{text}")
+    return "\n".join(parts)
+
+
+def _page(payload: dict) -> str:
+    scene = json.dumps(payload, separators=(",", ":")).replace("</", "<\\/").replace("<!--", "<\\!--")
+    script = bundled_script()
+    if "</script" in script:
+        raise HarnessError("web/: a script holds '</script', which would end the page's script early")
+    parts = {"TITLE": html.escape(payload["name"]), "SCENE": scene, "SCRIPT": script}
+    return re.sub(r"\{\{(TITLE|SCENE|SCRIPT)\}\}", lambda m: parts[m.group(1)], (WEB / TEMPLATE).read_text())

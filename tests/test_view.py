@@ -1,0 +1,279 @@
+"""`harness view`: the scene live in a browser. The page is loaded in Debian's Chromium, headless,
+driven by Playwright (tests/browser/drive.mjs): its headless check (index.html?check=T) must end
+where the harness's master over the native FMUs ends, for uncoupled and coupled scenes and every
+master algorithm; a person's drag must restart the object from where it was dropped, at rest, and
+the steps after it must be those of the native FMU from that start; a method or step chosen on the
+page must be the one the FMU runs; the page must load nothing from the network, opened as a file
+and served over HTTP. The screenshots go to build/screenshots/ (the README shows copies).
+
+Agreement is to rounding, not bit for bit: the modules link wasi-libc's mathematical functions
+(tests/test_wasm.py measures where they differ from glibc's)."""
+from __future__ import annotations
+
+import functools
+import json
+import math
+import re
+import shutil
+import socket
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from harness.cli import main
+from harness.cosim.master import Master, MasterOptions
+from harness.cosim.system import load_system
+from harness.fmi.fmu_instance import FmuInstance
+from harness.fmi.fmus import PROJECT_ROOT, build_dir
+from harness.objects.thesis.reference import exact_simple_pendulum
+from harness.view.wasm import WASI_LIBC
+
+NODE = shutil.which("node")
+DRIVER = PROJECT_ROOT / "tests" / "browser" / "drive.mjs"
+CHROMIUM = Path("/usr/bin/chromium")
+SCENES = PROJECT_ROOT / "scenes"
+SCREENSHOTS = build_dir() / "screenshots"
+
+
+def needs_browser() -> None:
+    if NODE is None:
+        pytest.skip("Node is not installed")
+    if not CHROMIUM.exists():
+        pytest.skip("Debian's chromium is not installed (./run installs it as root)")
+    if not (DRIVER.parent / "node_modules" / "playwright-core").is_dir():
+        pytest.skip("playwright-core is not installed in tests/browser (./run test installs it with npm ci)")
+    needs_wasm_tools()
+
+
+def needs_wasm_tools() -> None:
+    if shutil.which("clang") is None or not WASI_LIBC.exists():
+        pytest.skip("needs clang with the wasm32-wasi target and Debian's wasi-libc (./run installs them as root)")
+
+
+def drive(*args: str) -> dict:
+    result = subprocess.run([NODE, str(DRIVER), *args], capture_output=True, text=True, timeout=600,
+                            cwd=DRIVER.parent)
+    assert result.returncode == 0, result.stderr[-3000:]
+    return json.loads(result.stdout.splitlines()[-1])
+
+
+@functools.cache
+def page(scene: str) -> Path:
+    """The scene's page, written once per test process through the command line."""
+    out = build_dir() / "test-view" / scene
+    assert main(["view", str(SCENES / f"{scene}.json"), "--out", str(out)]) == 0
+    return out / "index.html"
+
+
+def native_end(scene: str, stop: float, **options) -> dict[str, float]:
+    """Every output at `stop` from the harness's master over the native FMUs."""
+    with load_system(SCENES / f"{scene}.json") as system:
+        master = Master(system, MasterOptions(stop=stop, step=system.step, **options))
+        try:
+            result = master.run()
+        finally:
+            master.free()
+    return dict(zip(result.columns, result.values[-1]))
+
+
+def assert_agrees(checked: dict, expected: dict[str, float], bound: float) -> float:
+    assert not checked.get("problems"), checked.get("problems")
+    assert "error" not in checked, checked.get("error")
+    assert checked["time"] == pytest.approx(expected["time"], abs=1e-12)
+    names = {f"{c}.{v}" for c, values in checked["components"].items() for v in values}
+    assert names == set(expected) - {"time"}  # every output of every component, nothing else
+    worst = 0.0
+    for component, values in checked["components"].items():
+        for name, value in values.items():
+            reference = expected[f"{component}.{name}"]
+            if float(reference).is_integer() and name.startswith("n_"):  # counters: exactly
+                assert value == reference, (component, name)
+            worst = max(worst, abs(value - reference) / (1 + abs(reference)))
+    assert worst <= bound
+    assert checked["wall_per_second"] > 0
+    return worst
+
+
+@pytest.mark.parametrize("scene, stop, bound", [("thesis_scene", 2.0, 1e-10), ("double_and_cart", 3.0, 1e-10),
+                                                ("spring_chain", 2.0, 1e-10)])
+def test_the_headless_check_ends_where_the_native_master_does(scene, stop, bound):
+    needs_browser()
+    checked = drive("check", f"{page(scene).as_uri()}?check={stop}")
+    assert_agrees(checked, native_end(scene, stop), bound)
+    assert checked["steps"] == math.ceil(stop / load_system(SCENES / f"{scene}.json").step - 1e-9)
+
+
+@pytest.mark.parametrize("algorithm", ["jacobi", "gauss-seidel"])
+@pytest.mark.parametrize("extrapolation", ["hold", "linear"])
+def test_the_javascript_master_is_the_harness_master(algorithm, extrapolation):
+    needs_browser()
+    checked = drive("check", f"{page('coupled_pendulums').as_uri()}?check=3&algorithm={algorithm}"
+                             f"&extrapolation={extrapolation}")
+    # the same calls in the same order: only the libm's last bits part them
+    assert_agrees(checked, native_end("coupled_pendulums", 3.0, algorithm=algorithm, extrapolation=extrapolation),
+                  1e-12)
+
+
+def test_the_page_is_served_over_http_as_from_a_file():
+    needs_browser()
+    index = page("coupled_pendulums")
+    with socket.socket() as probe:
+        probe.bind(("127.0.0.1", 0))
+        port = probe.getsockname()[1]
+    server = subprocess.Popen([sys.executable, "-m", "http.server", str(port), "--bind", "127.0.0.1"],
+                              cwd=index.parent, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    try:
+        for _ in range(100):
+            try:
+                socket.create_connection(("127.0.0.1", port), timeout=0.2).close()
+                break
+            except OSError:
+                time.sleep(0.05)
+        served = drive("check", f"http://127.0.0.1:{port}/index.html?check=1")
+    finally:
+        server.terminate()
+        server.wait(10)
+    from_file = drive("check", f"{index.as_uri()}?check=1")
+    assert not served["problems"] and not from_file["problems"]  # nothing fetched from anywhere else
+    assert served["components"] == from_file["components"]
+
+
+def test_the_page_holds_everything_it_needs():
+    needs_wasm_tools()
+    text = page("thesis_scene").read_text()
+    assert not re.search(r"""(src|href)\s*=\s*["']?(https?:)?//""", text)  # no resource from elsewhere
+    assert not re.search(r"""\bimport\s*\(|^\s*import\s""", text, re.MULTILINE)  # one script, no module to fetch
+    scene = json.loads(re.search(r'<script type="application/json" id="scene">(.*?)</script>', text, re.S).group(1))
+    assert set(scene["modules"]) == {"SimplePendulum", "SpringPendulum", "DoublePendulum"}
+    assert all(len(m["wasm"]) > 100_000 for m in scene["modules"].values())
+
+
+def run_native(fmu: Path, start: dict, steps: int, H: float, outputs: list[str]) -> dict[str, float]:
+    with FmuInstance(fmu) as instance:
+        instance.initialize(0.0, **start)
+        for k in range(steps):
+            assert instance.do_step(k * H, (k + 1) * H - k * H) == 0
+        return dict(zip(outputs, instance.get(*outputs)))
+
+
+def test_a_dragged_mass_restarts_the_object_from_where_it_was_dropped():
+    needs_browser()
+    SCREENSHOTS.mkdir(parents=True, exist_ok=True)
+    target = [-math.sin(1.0), -math.cos(1.0)]  # the simple pendulum's bob at -1 rad
+    tip = [0.9 * math.sin(0.3) + 0.9 * math.sin(-0.4), 0.9 - 0.9 * math.cos(0.3) - 0.9 * math.cos(-0.4)]
+    plan = [{"drag": ["simple", "x", "y", target]}, {"snapshot": "dropped"}, {"start": ["start", "simple"]},
+            {"drag": ["double", "x2", "y2", tip]}, {"snapshot": "dropped2"}, {"start": ["start2", "double"]},
+            {"step": 5}, {"snapshot": "stepped"},
+            {"screenshot": str(SCREENSHOTS / "view_thesis_scene_dragged.png")}]
+    seen = session("thesis_scene", plan)
+    scene = load_system(SCENES / "thesis_scene.json")
+    pixel = seen["metres_per_pixel"]
+    dropped, start = seen["dropped"]["components"]["simple"], seen["start"]
+    assert seen["dropped"]["time"] == 0
+    assert math.dist([dropped["x"], dropped["y"]], target) <= pixel  # where the mouse let go, to a pixel
+    assert start["omega"] == 0 and dropped["omega"] == 0  # at rest
+    assert start["phi"] == pytest.approx(-1.0, abs=pixel)
+    double = seen["dropped2"]["components"]["double"]
+    assert math.dist([double["x2"], double["y2"]], tip) <= pixel
+    assert seen["start2"]["omega1"] == 0 and seen["start2"]["omega2"] == 0
+    # the first drop stays: the scene restarted with both new starts
+    assert seen["dropped2"]["components"]["simple"]["phi"] == dropped["phi"]
+    # five steps on from there are the native FMUs' from the same starts
+    H = scene.step
+    for name, start_values in (("simple", seen["start"]), ("double", seen["start2"])):
+        component = scene.component(name)
+        got = seen["stepped"]["components"][name]
+        expected = run_native(component.fmu, start_values, 5, H, list(got))
+        for variable, value in got.items():
+            assert value == pytest.approx(expected[variable], rel=1e-12, abs=1e-12), (name, variable)
+    assert seen["stepped"]["time"] == pytest.approx(5 * H)
+    assert (SCREENSHOTS / "view_thesis_scene_dragged.png").stat().st_size > 10_000
+
+
+def session(scene: str, plan: list[dict]) -> dict:
+    plan_file = build_dir() / "test-view" / f"{scene}-plan.json"
+    plan_file.write_text(json.dumps(plan))
+    seen = drive("session", page(scene).as_uri(), str(plan_file))
+    assert not seen["problems"], seen["problems"]
+    return seen
+
+
+def test_the_method_and_step_chosen_on_the_page_are_those_the_fmu_runs():
+    needs_browser()
+    plan = [{"set": ["simple", "solver", "euler"]}, {"set": ["simple", "h", 0.01]}, {"step": 3},
+            {"snapshot": "euler"}, {"start": ["start", "simple"]},
+            {"set": ["simple", "h", -1]}, {"problem": "refused"}, {"start": ["kept", "simple"]}]
+    seen = session("thesis_scene", plan)
+    component = load_system(SCENES / "thesis_scene.json").component("simple")
+    assert seen["start"]["solver"] == 1 and seen["start"]["h"] == 0.01  # euler's item, the new step
+    got = seen["euler"]["components"]["simple"]
+    expected = run_native(component.fmu, dict(component.start, solver="euler", h=0.01), 3, 0.04, list(got))
+    for variable, value in got.items():
+        assert value == pytest.approx(expected[variable], rel=1e-12, abs=1e-12), variable
+    assert got["n_steps"] == 12  # 3 steps of 0.04 s at h = 0.01
+    # a step the FMU refuses: its message on the page, the step before kept
+    assert "h" in seen["refused"] and "-1" in seen["refused"]
+    assert seen["kept"]["h"] == 0.01
+
+
+def test_a_coupled_scene_runs_live_and_is_photographed():
+    needs_browser()
+    SCREENSHOTS.mkdir(parents=True, exist_ok=True)
+    for scene in ("thesis_scene", "spring_chain"):
+        shot = SCREENSHOTS / f"view_{scene}.png"
+        seen = drive("shot", page(scene).as_uri(), str(shot), "2")
+        assert not seen["problems"] and not seen["problem"], seen
+        assert seen["time"] > 0.5  # it moved on by itself, at the scene's frame rate
+        assert shot.stat().st_size > 10_000
+
+
+def test_a_bad_check_time_is_reported_on_the_page():
+    needs_browser()
+    checked = drive("check", f"{page('coupled_pendulums').as_uri()}?check=soon")
+    assert "check=soon" in checked["error"]
+    checked = drive("check", f"{page('coupled_pendulums').as_uri()}?check=1&algorithm=newton")
+    assert "newton" in checked["error"]
+
+
+def test_the_exact_pendulum_in_javascript_is_scipys():
+    if NODE is None:
+        pytest.skip("Node is not installed")
+    cases = [(0.1, 0.37), (0.5, 1.0), (2.5, 7.3), (-3.0, 11.1), (3.1, 250.0)]
+    script = ("import { exactSimplePendulum } from " + json.dumps((PROJECT_ROOT / "web" / "exact.mjs").as_uri())
+              + "; console.log(JSON.stringify(" + json.dumps(cases)
+              + ".map(([p, t]) => exactSimplePendulum(p, t, 9.81, 1.3))));")
+    result = subprocess.run([NODE, "--input-type=module", "-e", script], capture_output=True, text=True, timeout=60)
+    assert result.returncode == 0, result.stderr
+    for (phi0, t), (phi, omega) in zip(cases, json.loads(result.stdout)):
+        reference_phi, reference_omega = exact_simple_pendulum(phi0, t, 9.81, 1.3)
+        assert phi == pytest.approx(float(reference_phi), abs=1e-11)
+        assert omega == pytest.approx(float(reference_omega), abs=1e-10)
+
+
+def test_view_refuses_what_it_cannot_show(tmp_path, capsys):
+    needs_wasm_tools()
+    scene = json.loads((SCENES / "coupled_pendulums.json").read_text())
+    scene["components"]["left"]["fmu"] = "fmi3/SimplePendulum"
+    (tmp_path / "fmi3.json").write_text(json.dumps(scene))
+    out = tmp_path / "out"
+    assert main(["view", str(tmp_path / "fmi3.json"), "--out", str(out)]) == 2
+    assert "FMI 2.0 Co-Simulation" in capsys.readouterr().err
+    assert not out.exists()  # nothing made for a refused scene
+    (tmp_path / "file").write_text("x")
+    assert main(["view", str(SCENES / "thesis_scene.json"), "--out", str(tmp_path / "file")]) == 2
+    assert "is a file" in capsys.readouterr().err
+    scene = json.loads((SCENES / "thesis_scene.json").read_text())
+    scene["camera"]["layout"] = "stacked"
+    (tmp_path / "layout.json").write_text(json.dumps(scene))
+    assert main(["view", str(tmp_path / "layout.json"), "--out", str(out)]) == 2
+    assert "'layout'" in capsys.readouterr().err
+    scene = json.loads((SCENES / "thesis_scene.json").read_text())
+    scene["components"]["simple"]["start"]["h"] = -0.1
+    (tmp_path / "start.json").write_text(json.dumps(scene))
+    assert main(["view", str(tmp_path / "start.json"), "--out", str(out)]) == 2
+    assert "simple" in capsys.readouterr().err
+    assert not out.exists()

@@ -1,0 +1,293 @@
+// The live view's co-simulation master: the harness's master (harness/cosim) over the same FMI
+// calls, for the FMUs' WebAssembly modules. Jacobi or Gauss-Seidel over a fixed communication
+// step, inputs held or extrapolated linearly. In FMI 2.0 an input and its derivative are values at
+// the start of the receiving step: a source that has not stepped yet hands over y(t) and its output
+// derivative; in Gauss-Seidel one that has stepped hands over y(t) with the slope
+// (y(t + H) - y(t)) / H. At t = 0 connected outputs are copied to inputs inside initialization
+// mode until they settle.
+import { FmuModule } from "./fmu.mjs";
+
+export const ALGORITHMS = ["jacobi", "gauss-seidel"];
+export const EXTRAPOLATIONS = ["hold", "linear"];
+const OK = 0, DISCARD = 2;
+const STATUS_NAMES = ["OK", "Warning", "Discard", "Error", "Fatal", "Pending"];
+
+/** A failed FMI call: the component, the call, its status and the FMU's last message. */
+export class FmiError extends Error {}
+
+/** The start values of a component as the FMU takes them: {reals: [vrs, values], integers: ...}. */
+export function startCalls(meta, start) {
+  const calls = { real: [[], []], integer: [[], []], boolean: [[], []] };
+  for (const [name, value] of Object.entries(start)) {
+    const [vr, kind] = meta.variables[name];
+    calls[kind][0].push(vr);
+    calls[kind][1].push(value);
+  }
+  return calls;
+}
+
+/** Sets the start values, then enters initialization mode at time t0 (from a fresh or reset instance). */
+export function beginInstance(instance, meta, start, t0, what) {
+  const calls = startCalls(meta, start);
+  const check = (status, call) => {
+    if (status > 1) {
+      throw new FmiError(`${what}: ${call} returned ${STATUS_NAMES[status] ?? status}: ` +
+                         `${instance.module.messages.at(-1) ?? "no message"}`);
+    }
+  };
+  check(instance.setupExperiment(t0), "fmi2SetupExperiment");
+  if (calls.integer[0].length) check(instance.setInteger(...calls.integer), "fmi2SetInteger");
+  if (calls.boolean[0].length) check(instance.setBoolean(...calls.boolean), "fmi2SetBoolean");
+  if (calls.real[0].length) check(instance.setReal(...calls.real), "fmi2SetReal");
+  check(instance.enterInitialization(), "fmi2EnterInitializationMode");
+  return check;
+}
+
+/** One component: its instance, its start values (those of the scene, changed by the person), and
+ * its exchange buffers: outputs and their derivatives now (y, dy) and after its step (yNext,
+ * dyNext), inputs and their derivatives (u, du). */
+export class Unit {
+  constructor(name, fmu, meta, start) {
+    this.name = name;
+    this.meta = meta;
+    this.instance = fmu.instantiate(name, meta.guid);
+    this.sceneStart = { ...start };
+    this.start = { ...start };
+    this.begun = false;
+    this.realOutputs = meta.real_outputs;
+    this.integerOutputs = meta.integer_outputs;
+    this.outVrs = this.realOutputs.map((n) => meta.variables[n][0]);
+    this.intVrs = this.integerOutputs.map((n) => meta.variables[n][0]);
+    const n = this.realOutputs.length;
+    [this.y, this.dy, this.yNext, this.dyNext] = [0, 0, 0, 0].map(() => new Float64Array(n));
+    this.inputs = []; // input names, in the order of u
+    this.inVrs = [];
+    this.energyIndex = meta.energy ? this.realOutputs.indexOf(meta.energy) : -1;
+  }
+
+  addInput(name) {
+    this.inputs.push(name);
+    this.inVrs.push(this.meta.variables[name][0]);
+    this.u = new Float64Array(this.inputs.length);
+    this.du = new Float64Array(this.inputs.length);
+    return this.inputs.length - 1;
+  }
+
+  /** The value of a start value or setting: the one set for this unit, else the FMU's default. */
+  setting(name) {
+    return name in this.start ? this.start[name] : this.meta.defaults[name];
+  }
+
+  check(status, call) {
+    if (status > 1 && status !== DISCARD) {
+      throw new FmiError(`${this.name}: ${call} returned ${STATUS_NAMES[status] ?? status}: ` +
+                         `${this.instance.module.messages.at(-1) ?? "no message"}`);
+    }
+    return status;
+  }
+
+  begin(t0) {
+    if (this.begun) this.check(this.instance.reset(), "fmi2Reset");
+    this.begun = true;
+    this.instance.module.messages.length = 0;
+    beginInstance(this.instance, this.meta, this.start, t0, this.name);
+  }
+
+  readOutputs(derivatives) {
+    const [status, values] = this.instance.getReal(this.outVrs);
+    this.check(status, "fmi2GetReal");
+    this.yNext.set(values);
+    if (derivatives) {
+      const [dstatus, slopes] = this.instance.getOutputDerivatives(this.outVrs);
+      this.check(dstatus, "fmi2GetRealOutputDerivatives");
+      this.dyNext.set(slopes);
+    }
+  }
+
+  writeInputs(derivatives) {
+    if (!this.inputs.length) return;
+    this.check(this.instance.setReal(this.inVrs, this.u), "fmi2SetReal");
+    if (derivatives) this.check(this.instance.setInputDerivatives(this.inVrs, this.du), "fmi2SetRealInputDerivatives");
+  }
+
+  accept(derivatives) {
+    this.y.set(this.yNext);
+    if (derivatives) this.dy.set(this.dyNext);
+  }
+
+  /** Every output's value now, by name (integer outputs read from the FMU). */
+  values() {
+    const values = {};
+    this.realOutputs.forEach((name, k) => { values[name] = this.y[k]; });
+    if (this.intVrs.length) {
+      const [status, ints] = this.instance.getInteger(this.intVrs);
+      this.check(status, "fmi2GetInteger");
+      this.integerOutputs.forEach((name, k) => { values[name] = ints[k]; });
+    }
+    return values;
+  }
+
+  output(name) {
+    return this.y[this.realOutputs.indexOf(name)];
+  }
+
+  get energy() {
+    return this.energyIndex >= 0 ? this.y[this.energyIndex] : NaN;
+  }
+}
+
+/** The scene's units stepped together. `scene` is the page's scene (harness/view/page.py). */
+export class Master {
+  static async create(scene, options = {}) {
+    const modules = {};
+    for (const [key, meta] of Object.entries(scene.modules)) {
+      modules[key] = await FmuModule.load(decodeBase64(meta.wasm));
+    }
+    return new Master(scene, modules, options);
+  }
+
+  constructor(scene, modules, { algorithm = scene.algorithm, extrapolation = scene.extrapolation } = {}) {
+    if (!ALGORITHMS.includes(algorithm)) throw new Error(`algorithm ${algorithm}: choose one of ${ALGORITHMS}`);
+    if (!EXTRAPOLATIONS.includes(extrapolation)) {
+      throw new Error(`extrapolation ${extrapolation}: choose one of ${EXTRAPOLATIONS}`);
+    }
+    this.scene = scene;
+    this.modules = modules;
+    this.algorithm = algorithm;
+    this.linear = extrapolation === "linear";
+    this.H = scene.step;
+    this.units = scene.components.map((c) => new Unit(c.name, modules[c.module], scene.modules[c.module], c.start));
+    const index = Object.fromEntries(this.units.map((u, k) => [u.name, k]));
+    // per receiving unit: [source index, source output indices, input indices]
+    this.routes = this.units.map(() => new Map());
+    for (const [source, output, target, input] of scene.connections) {
+      const j = index[source], k = index[target];
+      const slot = this.units[k].addInput(input);
+      if (!this.routes[k].has(j)) this.routes[k].set(j, [[], []]);
+      const [outs, ins] = this.routes[k].get(j);
+      outs.push(this.units[j].realOutputs.indexOf(output));
+      ins.push(slot);
+    }
+    this.routes = this.routes.map((m) => [...m.entries()].map(([j, [outs, ins]]) => [j, outs, ins]));
+    this.stepped = this.units.map(() => false);
+    this.restart();
+  }
+
+  unit(name) {
+    return this.units.find((u) => u.name === name);
+  }
+
+  /** Every unit from its start values at t = 0. */
+  restart() {
+    this.steps = 0;
+    this.time = 0;
+    for (const unit of this.units) unit.begin(0);
+    this.settle();
+    for (const unit of this.units) {
+      unit.check(unit.instance.exitInitialization(), "fmi2ExitInitializationMode");
+      unit.readOutputs(this.linear);
+      unit.accept(this.linear);
+    }
+  }
+
+  settle(tolerance = 1e-14, passes = 50) {
+    for (let pass = 0; pass < passes; pass++) {
+      let change = 0;
+      for (const unit of this.units) {
+        unit.readOutputs(false);
+        unit.y.set(unit.yNext);
+      }
+      this.units.forEach((unit, k) => {
+        if (!unit.inputs.length) return;
+        for (const [j, outs, ins] of this.routes[k]) {
+          outs.forEach((o, i) => {
+            change = Math.max(change, Math.abs(this.units[j].y[o] - unit.u[ins[i]]));
+            unit.u[ins[i]] = this.units[j].y[o];
+          });
+        }
+        unit.writeInputs(false);
+      });
+      if (change <= tolerance) return;
+    }
+  }
+
+  feed(k, H, stepped) {
+    const unit = this.units[k];
+    if (!unit.inputs.length) return;
+    for (const [j, outs, ins] of this.routes[k]) {
+      const source = this.units[j];
+      outs.forEach((o, i) => {
+        const slot = ins[i];
+        if (stepped[j]) {
+          if (this.linear) {
+            unit.u[slot] = source.y[o];
+            unit.du[slot] = (source.yNext[o] - source.y[o]) / H;
+          } else {
+            unit.u[slot] = source.yNext[o];
+          }
+        } else {
+          unit.u[slot] = source.y[o];
+          if (this.linear) unit.du[slot] = source.dy[o];
+        }
+      });
+    }
+    unit.writeInputs(this.linear);
+  }
+
+  /** One macro step from this.time to `end` (by default the next point k H of the grid: points
+   * come from their index, never accumulated, as in the harness). Returns null, or what stopped it. */
+  step(end = (this.steps + 1) * this.H) {
+    const t = this.time, H = end - t, units = this.units, stepped = this.stepped;
+    stepped.fill(false);
+    const discarded = (unit) => `${unit.name} could not complete the step from t = ${t}: ` +
+                                `${unit.instance.module.messages.at(-1) ?? "no message"}`;
+    if (this.algorithm === "jacobi") {
+      units.forEach((_, k) => this.feed(k, H, stepped));
+      for (const unit of units) {
+        if (unit.check(unit.instance.doStep(t, H), "fmi2DoStep") === DISCARD) return discarded(unit);
+      }
+      for (const unit of units) unit.readOutputs(this.linear);
+    } else {
+      for (let k = 0; k < units.length; k++) {
+        this.feed(k, H, stepped);
+        if (units[k].check(units[k].instance.doStep(t, H), "fmi2DoStep") === DISCARD) return discarded(units[k]);
+        units[k].readOutputs(this.linear);
+        stepped[k] = true;
+      }
+    }
+    for (const unit of units) unit.accept(this.linear);
+    this.steps += 1;
+    this.time = end;
+    return null;
+  }
+
+  /** Steps to `stop` on the harness's grid: 0, H, 2 H, ..., the last point moved to stop. */
+  runTo(stop) {
+    const n = Math.max(1, Math.ceil(stop / this.H - 1e-9));
+    while (this.steps < n) {
+      const problem = this.step(this.steps + 1 === n ? stop : (this.steps + 1) * this.H);
+      if (problem) return problem;
+    }
+    return null;
+  }
+
+  /** {"time", "components": {name: {output: value}}}: every output of every component (the states
+   * are outputs in these FMUs). */
+  snapshot() {
+    const components = {};
+    for (const unit of this.units) components[unit.name] = unit.values();
+    return { time: this.time, components };
+  }
+
+  free() {
+    for (const unit of this.units) unit.instance.free();
+    this.units = [];
+  }
+}
+
+export function decodeBase64(text) {
+  const binary = atob(text);
+  const bytes = new Uint8Array(binary.length);
+  for (let k = 0; k < binary.length; k++) bytes[k] = binary.charCodeAt(k);
+  return bytes;
+}
