@@ -3,11 +3,13 @@ pictures it names, the animation, and the CSV files behind the tables."""
 from __future__ import annotations
 
 import re
+import shutil
 
 import pytest
 from PIL import Image
 
 from harness.cli import main
+from harness.view.wasm import WASI_LIBC
 
 
 @pytest.fixture(scope="module")
@@ -33,6 +35,16 @@ def test_every_picture_named_exists(demo):
             "stability-regions.png"} <= set(names)
     for name in names:
         assert (out / name).stat().st_size > 5_000, name
+
+
+def test_the_report_links_the_live_view(demo):
+    out, page = demo
+    if shutil.which("clang") is None or not WASI_LIBC.exists():  # the report says why there is none
+        assert "No live view" in page and "wasi-libc" in page
+        return
+    assert "<a href='live/index.html'>The scene live</a>" in page
+    live = (out / "live" / "index.html").read_text()
+    assert "thesis scene" in live and '"SimplePendulum"' in live  # the thesis scene's page, its modules inside
 
 
 def test_the_animation_covers_the_scene(demo):

@@ -130,6 +130,12 @@ export class FmuInstance {
     return [status, new Float64Array(this.module.memory, this.doubles, vrs.length).slice()];
   }
 
+  /** A fixed set of variables with its own buffers in the module's memory, for the calls a master
+   * makes every step: no allocation per call. */
+  port(vrs) {
+    return new Port(this, vrs);
+  }
+
   setupExperiment(start = 0) {
     return this.call("fmi2SetupExperiment", 0, 0.0, start, 0, 0.0);
   }
@@ -143,5 +149,66 @@ export class FmuInstance {
     this.call("fmi2FreeInstance");
     if (this.capacity) ["vrs", "doubles", "ints", "orders"].forEach((k) => this.fmi.free(this[k]));
     this.capacity = 0;
+  }
+}
+
+/** The value references of a port and room for their values, orders and integers, allocated once;
+ * the typed-array views on them are made again only when the module's memory has grown. */
+export class Port {
+  constructor(instance, vrs) {
+    this.instance = instance;
+    this.fmi = instance.fmi;
+    this.component = instance.component;
+    this.n = vrs.length;
+    const n = Math.max(this.n, 1);
+    [this.vrs, this.doubles, this.ints, this.orders] = [4, 8, 4, 4].map((size) => this.fmi.malloc(size * n));
+    this.buffer = null;
+    this.views();
+    this.vrView.set(vrs);
+    this.orderView.fill(1);
+  }
+
+  views() {
+    const buffer = this.instance.module.memory;
+    if (buffer !== this.buffer) {
+      this.buffer = buffer;
+      this.vrView = new Uint32Array(buffer, this.vrs, this.n);
+      this.values = new Float64Array(buffer, this.doubles, this.n); // what the last get read, or the next set hands over
+      this.integers = new Int32Array(buffer, this.ints, this.n);
+      this.orderView = new Int32Array(buffer, this.orders, this.n);
+    }
+    return this;
+  }
+
+  getReal() { // into this.values
+    const status = this.fmi.fmi2GetReal(this.component, this.vrs, this.n, this.doubles);
+    this.views();
+    return status;
+  }
+
+  setReal(values) {
+    this.views().values.set(values);
+    return this.fmi.fmi2SetReal(this.component, this.vrs, this.n, this.doubles);
+  }
+
+  getOutputDerivatives() { // first-order, into this.values
+    const status = this.fmi.fmi2GetRealOutputDerivatives(this.component, this.vrs, this.n, this.orders, this.doubles);
+    this.views();
+    return status;
+  }
+
+  setInputDerivatives(values) { // first-order
+    this.views().values.set(values);
+    return this.fmi.fmi2SetRealInputDerivatives(this.component, this.vrs, this.n, this.orders, this.doubles);
+  }
+
+  getInteger() { // into this.integers
+    const status = this.fmi.fmi2GetInteger(this.component, this.vrs, this.n, this.ints);
+    this.views();
+    return status;
+  }
+
+  free() {
+    [this.vrs, this.doubles, this.ints, this.orders].forEach((pointer) => this.fmi.free(pointer));
   }
 }

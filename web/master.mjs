@@ -56,18 +56,20 @@ export class Unit {
     this.begun = false;
     this.realOutputs = meta.real_outputs;
     this.integerOutputs = meta.integer_outputs;
-    this.outVrs = this.realOutputs.map((n) => meta.variables[n][0]);
-    this.intVrs = this.integerOutputs.map((n) => meta.variables[n][0]);
+    this.outputs = this.instance.port(this.realOutputs.map((n) => meta.variables[n][0]));
+    this.integerPort = this.integerOutputs.length ? this.instance.port(this.integerOutputs.map((n) => meta.variables[n][0]))
+      : null;
     const n = this.realOutputs.length;
     [this.y, this.dy, this.yNext, this.dyNext] = [0, 0, 0, 0].map(() => new Float64Array(n));
     this.inputs = []; // input names, in the order of u
-    this.inVrs = [];
+    this.inputPort = null;
     this.energyIndex = meta.energy ? this.realOutputs.indexOf(meta.energy) : -1;
   }
 
   addInput(name) {
     this.inputs.push(name);
-    this.inVrs.push(this.meta.variables[name][0]);
+    this.inputPort?.free();
+    this.inputPort = this.instance.port(this.inputs.map((n) => this.meta.variables[n][0]));
     this.u = new Float64Array(this.inputs.length);
     this.du = new Float64Array(this.inputs.length);
     return this.inputs.length - 1;
@@ -94,20 +96,19 @@ export class Unit {
   }
 
   readOutputs(derivatives) {
-    const [status, values] = this.instance.getReal(this.outVrs);
-    this.check(status, "fmi2GetReal");
-    this.yNext.set(values);
+    const port = this.outputs;
+    this.check(port.getReal(), "fmi2GetReal");
+    this.yNext.set(port.values);
     if (derivatives) {
-      const [dstatus, slopes] = this.instance.getOutputDerivatives(this.outVrs);
-      this.check(dstatus, "fmi2GetRealOutputDerivatives");
-      this.dyNext.set(slopes);
+      this.check(port.getOutputDerivatives(), "fmi2GetRealOutputDerivatives");
+      this.dyNext.set(port.values);
     }
   }
 
   writeInputs(derivatives) {
     if (!this.inputs.length) return;
-    this.check(this.instance.setReal(this.inVrs, this.u), "fmi2SetReal");
-    if (derivatives) this.check(this.instance.setInputDerivatives(this.inVrs, this.du), "fmi2SetRealInputDerivatives");
+    this.check(this.inputPort.setReal(this.u), "fmi2SetReal");
+    if (derivatives) this.check(this.inputPort.setInputDerivatives(this.du), "fmi2SetRealInputDerivatives");
   }
 
   accept(derivatives) {
@@ -119,16 +120,20 @@ export class Unit {
   values() {
     const values = {};
     this.realOutputs.forEach((name, k) => { values[name] = this.y[k]; });
-    if (this.intVrs.length) {
-      const [status, ints] = this.instance.getInteger(this.intVrs);
-      this.check(status, "fmi2GetInteger");
-      this.integerOutputs.forEach((name, k) => { values[name] = ints[k]; });
+    if (this.integerPort) {
+      this.check(this.integerPort.getInteger(), "fmi2GetInteger");
+      this.integerOutputs.forEach((name, k) => { values[name] = this.integerPort.integers[k]; });
     }
     return values;
   }
 
   output(name) {
     return this.y[this.realOutputs.indexOf(name)];
+  }
+
+  free() {
+    for (const port of [this.outputs, this.integerPort, this.inputPort]) port?.free();
+    this.instance.free();
   }
 
   get energy() {
@@ -280,7 +285,7 @@ export class Master {
   }
 
   free() {
-    for (const unit of this.units) unit.instance.free();
+    for (const unit of this.units) unit.free();
     this.units = [];
   }
 }

@@ -58,10 +58,29 @@ def thesis_section(out: Path, duration: float | None) -> Section:
         rows.append([name, result.fmu, start.get("solver", "rk4"), start.get("h"), int(result["n_rhs"][-1]),
                      f"{drift:.2e}", status])
     body = (_table(["object", "FMU", "method", "h [s]", "evaluations", "energy drift / max E_kin", "run"], rows)
-            + _image("thesis_scene_traces.png", "traces") + _image("thesis_scene.gif", "animation"))
+            + _live_view(out) + _image("thesis_scene_traces.png", "traces") + _image("thesis_scene.gif", "animation"))
     verdict = (f"all {len(rows)} objects ran {duration or system.stop:g} s at the thesis's step widths"
                if ok else "an object stopped early")
     return Section("Thesis scene (appendix C.2, figures C.1-C.3)", verdict, ok, body)
+
+
+def _live_view(out: Path) -> str:
+    """The thesis scene live in the browser (harness view), at live/index.html, and the link to it; where
+    the WebAssembly tools are missing, why there is none (the scene's verdict does not depend on it)."""
+    from harness.errors import HarnessError
+    from harness.scene.thesis_scene import THESIS_SCENE_FILE
+    from harness.view.page import write_view
+    try:
+        page = write_view(THESIS_SCENE_FILE, out / LIVE_FOLDER)
+    except HarnessError as error:
+        return f"<p>No live view: {html.escape(str(error))}</p>"
+    return (f"<p><b><a href='{LIVE_FOLDER}/index.html'>The scene live</a></b>: the same FMUs built to WebAssembly "
+            f"({', '.join(f'{n} {b / 1024:.0f} KB' for n, b in page.modules.items())}) in one self-contained "
+            "page; drag a mass to start it from there, pause, step, choose each object's method and step, and watch "
+            "the energies and the simple pendulum's error against its exact solution.</p>")
+
+
+LIVE_FOLDER = "live"
 
 
 def coupled_section(out: Path) -> Section:
