@@ -237,6 +237,8 @@ def test_a_bad_check_time_is_reported_on_the_page():
     assert "check=soon" in checked["error"]
     checked = drive("check", f"{page('coupled_pendulums').as_uri()}?check=1&algorithm=newton")
     assert "newton" in checked["error"]
+    checked = drive("check", f"{page('coupled_pendulums').as_uri()}?check=1e12")  # bounded as the harness's runs
+    assert "more than the 10000000 allowed" in checked["error"]
 
 
 def test_the_exact_pendulum_in_javascript_is_scipys():

@@ -266,9 +266,14 @@ export class Master {
     return null;
   }
 
-  /** Steps to `stop` on the harness's grid: 0, H, 2 H, ..., the last point moved to stop. */
+  /** Steps to `stop` on the harness's grid: 0, H, 2 H, ..., the last point moved to stop; as the
+   * harness, at most the scene's max_points steps. */
   runTo(stop) {
     const n = Math.max(1, Math.ceil(stop / this.H - 1e-9));
+    if (!(n <= this.scene.max_points)) {
+      throw new Error(`${stop} s in steps of ${this.H} s would be ${n} communication points, more than the ` +
+                      `${this.scene.max_points} allowed`);
+    }
     while (this.steps < n) {
       const problem = this.step(this.steps + 1 === n ? stop : (this.steps + 1) * this.H);
       if (problem) return problem;

@@ -297,6 +297,8 @@ class LiveView {
         this.lastFrame = now;
         this.simTarget = Math.max(this.simTarget, this.master.time) + this.speed * this.frameTime;
         this.advance(this.simTarget);
+        // what a slow frame could not reach is dropped, not owed: the scene slows down instead of freezing
+        this.simTarget = Math.min(this.simTarget, this.master.time + this.master.H);
         this.draw();
       }
     }

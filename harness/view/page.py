@@ -20,6 +20,7 @@ from pathlib import Path
 from harness.cosim.system import System, load_system
 from harness.errors import HarnessError, where
 from harness.fmi.fmu_instance import FmuInstance, read_description
+from harness.fmi.simulation import MAX_POINTS
 from harness.objects.proof import object_file_in
 from harness.output import output_folder, written
 from harness.view.wasm import WEB, build_modules
@@ -137,7 +138,7 @@ def _payload(system: System, modules: dict[str, dict], keys: dict[Path, str]) ->
         "name": system.name, "description": system.description,
         "step": system.step, "stop": system.stop, "frame_rate": frame_rate, "scale": camera.get("scale"),
         "layout": camera.get("layout", "together"),
-        "algorithm": "gauss-seidel", "extrapolation": "linear",
+        "algorithm": "gauss-seidel", "extrapolation": "linear", "max_points": MAX_POINTS,
         "modules": modules, "components": components,
         "connections": [[c.source, c.output, c.target, c.input] for c in system.connections],
     }

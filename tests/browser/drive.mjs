@@ -12,8 +12,7 @@ import { readFileSync } from "node:fs";
 import { chromium } from "playwright-core";
 
 const [mode, url, extra, seconds] = process.argv.slice(2);
-const browser = await chromium.launch({ executablePath: process.env.CHROMIUM ?? "/usr/bin/chromium",
-                                        args: ["--allow-file-access-from-files"] });
+const browser = await chromium.launch({ executablePath: process.env.CHROMIUM ?? "/usr/bin/chromium" });
 const problems = [];
 try {
   const page = await browser.newPage({ viewport: { width: 1400, height: 1000 } });
