@@ -2,7 +2,9 @@
 // positions come from the FMU itself (a second instance, started from trial coordinates and read
 // after initialization), so every object an object file describes can be dragged; the coordinates
 // are found by Levenberg-Marquardt from the current pose, which keeps the coordinates the point does
-// not need where they were. The velocities of the new start are zero.
+// not need where they were. The start's velocities stay as they were (at rest for a pendulum
+// released from rest; a spherical pendulum keeps its spin, without which it would fall through its
+// coordinates' pole).
 import { beginInstance } from "./master.mjs";
 
 const MAX_ITERATIONS = 60;
@@ -15,15 +17,12 @@ export class Poser {
     this.begun = false;
   }
 
-  /** The outputs `names` of the object started from `start` with coordinates q at rest. */
+  /** The outputs `names` of the object started from `start` with coordinates q. */
   positions(start, q, names) {
     if (this.begun) this.instance.reset();
     this.begun = true;
     const values = { ...start };
-    this.meta.coordinates.forEach(([coordinate, velocity], i) => {
-      values[coordinate] = q[i];
-      values[velocity] = 0;
-    });
+    this.meta.coordinates.forEach(([coordinate], i) => { values[coordinate] = q[i]; });
     const check = beginInstance(this.instance, this.meta, values, 0, this.name);
     check(this.instance.exitInitialization(), "fmi2ExitInitializationMode");
     const [status, got] = this.instance.getReal(names.map((n) => this.meta.variables[n][0]));
@@ -32,7 +31,8 @@ export class Poser {
   }
 
   /** Start values that put the point (outputs xName, yName) nearest to target [x, y], from the
-   * coordinates q0; {start, distance}. A trial the FMU refuses counts as a worse one. */
+   * coordinates q0, the start's velocities kept; {start, distance}. A trial the FMU refuses counts
+   * as a worse one. */
   pose(start, q0, xName, yName, target) {
     const names = [xName, yName];
     const residual = (q) => {
@@ -71,10 +71,7 @@ export class Poser {
       if (!improved) break; // the nearest pose: the point cannot come closer (out of reach)
     }
     const posed = { ...start };
-    this.meta.coordinates.forEach(([coordinate, velocity], i) => {
-      posed[coordinate] = q[i];
-      posed[velocity] = 0;
-    });
+    this.meta.coordinates.forEach(([coordinate], i) => { posed[coordinate] = q[i]; });
     return { start: posed, distance: norm(r) };
   }
 

@@ -62,6 +62,7 @@ class LiveView {
     this.frameTime = 1 / scene.frame_rate;
     this.frameCost = 0; // milliseconds of computation per frame, smoothed
     this.posers = {};
+    this.planes = {};
     this.sources = this.inputSources();
     this.colours = {};
     scene.components.forEach((c, k) => { this.colours[c.name] = COLOURS[k % COLOURS.length]; });
@@ -80,13 +81,30 @@ class LiveView {
     return sources;
   }
 
-  /** The points drawn for a unit, [x, y] each: its anchor, then its object's points in file order;
-   * an element (the Spring) between the points feeding its ends. Each with what can grab it. */
+  /** The two axes a unit is drawn in: those of its first trace (a 3-D object traced from above is
+   * drawn from above), else x and y. */
+  plane(unit) {
+    const trace = scene.components.find((c) => c.name === unit.name).traces[0];
+    for (const point of trace ? unit.meta.points : []) {
+      const axis = (name) => Object.keys(point.axes).find((a) => point.axes[a] === name);
+      if (axis(trace[0]) && axis(trace[1])) return [axis(trace[0]), axis(trace[1])];
+    }
+    return ["x", "y"];
+  }
+
+  /** The points drawn for a unit, [horizontal, vertical] each: its anchor, then its object's points
+   * in file order; an element (the Spring) between the points feeding its ends. A point the
+   * coordinates move can be grabbed (by its two position outputs). */
   figure(unit) {
-    const meta = unit.meta, points = [];
-    if (meta.anchor) points.push({ at: meta.anchor.map((n) => unit.setting(n)), mass: false });
-    for (const [xName, yName, mass] of meta.points) {
-      points.push({ at: [unit.output(xName), unit.output(yName)], mass, grab: [xName, yName] });
+    const meta = unit.meta, points = [], [a, b] = (this.planes[unit.name] ??= this.plane(unit));
+    if (meta.anchor?.[a] && meta.anchor?.[b]) {
+      points.push({ at: [unit.setting(meta.anchor[a]), unit.setting(meta.anchor[b])], mass: false });
+    }
+    for (const point of meta.points) {
+      const [h, v] = [point.axes[a], point.axes[b]];
+      if (!h || !v) continue;
+      points.push({ at: [unit.output(h), unit.output(v)], mass: point.moves && point.mass,
+                    grab: point.moves ? [h, v] : null });
     }
     for (const [xIn, yIn] of meta.spring_ends) {
       const [sx, ox] = this.sources[unit.name]?.[xIn] ?? [], [sy, oy] = this.sources[unit.name]?.[yIn] ?? [];
@@ -102,7 +120,7 @@ class LiveView {
 
   /** Panels (one per group when the scene lays them side by side) framed around what the scene
    * covers in its first seconds, at the camera's scale where that fits the window. */
-  layout() {
+  layout(keep = false) {
     const panels = groups().map((names) => ({ names, box: [Infinity, Infinity, -Infinity, -Infinity] }));
     const grow = () => {
       for (const panel of panels) {
@@ -123,6 +141,11 @@ class LiveView {
     } catch (error) {
       // framed by what ran; the restart that follows shows the problem if it persists
     }
+    const fits = (panel, k) => {
+      const old = this.panels?.[k]?.box, b = panel.box;
+      return old && b[0] >= old[0] && b[1] >= old[1] && b[2] <= old[2] && b[3] <= old[3];
+    };
+    if (keep && panels.every(fits)) return; // the frame stays where it still shows the scene
     for (const panel of panels) {
       const b = panel.box, size = Math.max(b[2] - b[0], b[3] - b[1], 0.5);
       const pad = 0.12 * size, widen = Math.max(0, 0.6 * (b[3] - b[1]) - (b[2] - b[0])) / 2; // no sliver of a panel
@@ -260,7 +283,7 @@ class LiveView {
   setRunning(running) {
     this.running = running;
     $("play").textContent = running ? "Pause" : "Play";
-    this.lastFrame = undefined;
+    this.nextFrame = undefined;
   }
 
   recordTraces() {
@@ -292,9 +315,10 @@ class LiveView {
 
   tick(now) {
     if (this.running && !this.dragging) {
-      if (this.lastFrame === undefined) this.lastFrame = now;
-      if (now - this.lastFrame >= 1000 * this.frameTime - 2) { // a frame per 1 / frame rate
-        this.lastFrame = now;
+      const frameMs = 1000 * this.frameTime;
+      if (this.nextFrame === undefined || now - this.nextFrame > frameMs) this.nextFrame = now; // start, or a stall
+      if (now >= this.nextFrame - 1) { // frames at the scene's rate on average, whatever the display's
+        this.nextFrame += frameMs;
         this.simTarget = Math.max(this.simTarget, this.master.time) + this.speed * this.frameTime;
         this.advance(this.simTarget);
         // what a slow frame could not reach is dropped, not owed: the scene slows down instead of freezing
@@ -409,19 +433,21 @@ class LiveView {
     e.preventDefault();
     this.canvas.setPointerCapture(e.pointerId);
     this.canvas.classList.add("dragging");
-    this.dragging = best;
-    this.drag(e);
+    this.dragging = { ...best, origin: at, moved: false };
   }
 
   drag(e) {
     const held = this.dragging;
     if (!held) return;
+    const at = this.pointer(e);
+    if (!held.moved && Math.hypot(at[0] - held.origin[0], at[1] - held.origin[1]) < 3) return; // a click
+    held.moved = true;
     const unit = held.unit, meta = unit.meta;
     const poser = (this.posers[unit.name] ??= new Poser(this.master.modules[scene.components.find(
       (c) => c.name === unit.name).module], meta, unit.name));
     const q0 = meta.coordinates.map(([q]) => unit.output(q));
     try {
-      const { start } = poser.pose(unit.start, q0, ...held.grab, this.toWorld(unit.name, this.pointer(e)));
+      const { start } = poser.pose(unit.start, q0, ...held.grab, this.toWorld(unit.name, at));
       const before = unit.start;
       unit.start = start;
       if (!this.restart()) {
@@ -434,12 +460,15 @@ class LiveView {
   }
 
   release() {
-    if (!this.dragging) return;
+    const held = this.dragging;
+    if (!held) return;
     this.dragging = null;
     this.canvas.classList.remove("dragging");
-    this.layout(); // framed anew around what the new start covers
-    this.restart();
-    this.lastFrame = undefined;
+    if (held.moved) {
+      this.layout(true); // framed anew only where the new start leaves the frame
+      this.restart();
+    }
+    this.nextFrame = undefined;
   }
 }
 

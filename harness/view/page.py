@@ -98,10 +98,14 @@ def _module(fmu: Path, wasm: bytes) -> dict:
     }
     if spec is not None:
         module["coordinates"] = [[c.name, c.velocity] for c in spec.coordinates]
-        module["points"] = [[p.outputs["x"], p.outputs["y"], p.velocity] for p in spec.points
-                            if "x" in p.outputs and "y" in p.outputs]
-        if {"anchor_x", "anchor_y"} <= {p.name for p in spec.parameters}:
-            module["anchor"] = ["anchor_x", "anchor_y"]
+        coordinates = set(spec.q)
+        # each point: its position outputs by axis, and whether the coordinates move it (a mass or a
+        # joint a person can drag, not a driven pivot)
+        module["points"] = [{"axes": {axis: p.outputs[axis] for axis in "xyz" if axis in p.outputs},
+                             "moves": any(coordinates & e.free_symbols for e in p.position), "mass": p.velocity}
+                            for p in spec.points]
+        parameters = {p.name for p in spec.parameters}
+        module["anchor"] = {axis: f"anchor_{axis}" for axis in "xyz" if f"anchor_{axis}" in parameters} or None
     else:  # an element such as the Spring: drawn between the points that feed its <end>_x, <end>_y inputs
         inputs = {v.name for v in variables if v.causality == "input" and v.type == "Real"}
         module["spring_ends"] = [[name, name[:-2] + "_y"] for name in sorted(inputs)
