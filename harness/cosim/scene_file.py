@@ -142,13 +142,14 @@ def read_json(path: Path) -> object:
         raise HarnessError(f"{path}: nested too deeply to be a scene file") from None
 
 
-def _check_traces(fmu: Path, pairs: list[tuple[str, str]], where: str, read: _Reader) -> None:
+def trace_problem(fmu: Path, pairs: list[tuple[str, str]]) -> str | None:
+    """Why these column pairs cannot be traces of the FMU's component, or None."""
     from harness.fmi.fmu_instance import read_description
     outputs = [v.name for v in read_description(fmu).modelVariables if v.causality == "output"]
     for name in (name for pair in pairs for name in pair):
         if name not in outputs:
-            raise read.fail(where, f"names {name!r}, which is not an output of {fmu.name} "
-                                   f"(outputs: {', '.join(outputs)})")
+            return f"names {name!r}, which is not an output of {fmu.name} (outputs: {', '.join(outputs)})"
+    return None
 
 
 def _plain_text(document, path: Path):
@@ -217,7 +218,9 @@ def load_scene_file(path: Path) -> System:
             if not spec["traces"]:
                 raise read.fail(f"{where}: \"traces\"", "is empty: list at least one pair of columns, or leave it out")
             traces[component_name] = [read.pair(p, f"{where}: a trace") for p in spec["traces"]]
-            _check_traces(fmu, traces[component_name], f"{where}: a trace", read)
+            problem = trace_problem(fmu, traces[component_name])
+            if problem:
+                raise read.fail(f"{where}: a trace", problem)
     connections = []
     pairs = data.get("connections", [])
     if not isinstance(pairs, list):

@@ -6,9 +6,10 @@ system uses under `resources/`.
   enumeration items as Integer with the item's value (every importer here takes that; not all of
   them read items by name), other integers as Integer, Booleans as Boolean.
 * Connectors: every variable a connection uses, inputs and outputs, typed Real.
-* The stop time goes into DefaultExperiment. The communication step and the power bonds, for which
-  SSP 1.0 has no element, go into annotations of the system ("org.pendulum-harness.step" and
-  "org.pendulum-harness.bonds"), which `load_ssp` reads back and other importers ignore.
+* The stop time goes into DefaultExperiment. The communication step, the power bonds and how the
+  scene is looked at (the camera, the traces, the description), for which SSP 1.0 has no element, go
+  into annotations of the system ("org.pendulum-harness.step", "org.pendulum-harness.bonds" and
+  "org.pendulum-harness.view"), which `load_ssp` reads back and other importers ignore.
 """
 from __future__ import annotations
 
@@ -25,6 +26,8 @@ SSD_NS = "http://ssp-standard.org/SSP1/SystemStructureDescription"
 SSC_NS = "http://ssp-standard.org/SSP1/SystemStructureCommon"
 SSV_NS = "http://ssp-standard.org/SSP1/SystemStructureParameterValues"
 BONDS_ANNOTATION = "org.pendulum-harness.bonds"
+VIEW_ANNOTATION = "org.pendulum-harness.view"
+VIEW_ATTRIBUTES = {"scale": "scale", "frame_rate": "frameRate", "layout": "layout"}  # camera key -> attribute
 STEP_ANNOTATION = "org.pendulum-harness.step"
 FMU_TYPE = "application/x-fmu-sharedlibrary"
 
@@ -91,7 +94,7 @@ def system_structure(system: System, sources: dict[str, str]) -> bytes:
     for c in system.connections:
         ET.SubElement(connections, _tag(SSD_NS, "Connection"), startElement=c.source, startConnector=c.output,
                       endElement=c.target, endConnector=c.input)
-    if system.bonds or system.step is not None:
+    if system.bonds or system.step is not None or system.camera or system.traces or system.description:
         annotations = ET.SubElement(element, _tag(SSD_NS, "Annotations"))  # holds ssc:Annotation elements
         if system.step is not None:
             ET.SubElement(annotations, _tag(SSC_NS, "Annotation"), type=STEP_ANNOTATION).append(
@@ -104,6 +107,16 @@ def system_structure(system: System, sources: dict[str, str]) -> bytes:
                 if bond.position is not None:
                     attributes["position"] = bond.position
                 ET.SubElement(annotation, "Bond", attributes)
+        if system.camera or system.traces or system.description:
+            view = {attribute: str(system.camera[key]) if key == "layout" else repr(float(system.camera[key]))
+                    for key, attribute in VIEW_ATTRIBUTES.items() if key in system.camera}
+            if system.description:
+                view["description"] = system.description
+            holder = ET.SubElement(ET.SubElement(annotations, _tag(SSC_NS, "Annotation"), type=VIEW_ANNOTATION),
+                                   "View", view)
+            for component, pairs in system.traces.items():
+                for x, y in pairs:
+                    ET.SubElement(holder, "Trace", component=component, x=x, y=y)
     if system.stop is not None:
         ET.SubElement(root, _tag(SSD_NS, "DefaultExperiment"), startTime="0", stopTime=repr(float(system.stop)))
     ET.indent(root)

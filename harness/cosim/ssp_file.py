@@ -184,6 +184,41 @@ def _annotated_step(root: ET.Element, what: str) -> float | None:
     return None
 
 
+def _view(root: ET.Element, what: str, components: list[Component]) -> tuple[dict, dict, str]:
+    """The camera, traces and description a system exported by this harness carries in an annotation."""
+    from harness.cosim.scene_file import LAYOUTS, trace_problem
+    from harness.cosim.ssp_export import VIEW_ANNOTATION, VIEW_ATTRIBUTES
+    camera, traces, description = {}, {}, ""
+    fmus = {c.name: c.fmu for c in components}
+    for annotation in root.iter():
+        if not (annotation.tag.endswith("}Annotation") and annotation.get("type") == VIEW_ANNOTATION):
+            continue
+        for view in annotation:
+            where = f"{what}: annotation {VIEW_ANNOTATION}"
+            for key, attribute in VIEW_ATTRIBUTES.items():
+                value = view.get(attribute)
+                if value is None:
+                    continue
+                if key == "layout":
+                    if value not in LAYOUTS:
+                        raise HarnessError(f"{where}: layout {value!r} must be one of {', '.join(map(repr, LAYOUTS))}")
+                    camera[key] = value
+                else:
+                    camera[key] = _number(value, f"{where} {attribute}")
+                    if not camera[key] > 0:
+                        raise HarnessError(f"{where}: {attribute} = {value} must be a positive number")
+            description = view.get("description", "")
+            for trace in view:
+                component, pair = trace.get("component"), (trace.get("x"), trace.get("y"))
+                if trace.tag != "Trace" or component not in fmus or not all(pair):
+                    raise HarnessError(f"{where}: each entry is a Trace with x and y of a component of the system")
+                problem = trace_problem(fmus[component], [pair])
+                if problem:
+                    raise HarnessError(f"{where}: the trace of {component!r} {problem}")
+                traces.setdefault(component, []).append(pair)
+    return camera, traces, description
+
+
 def _experiment(root: ET.Element, what: str) -> float | None:
     """stopTime of the SSD's DefaultExperiment (fmpy's reader does not keep it)."""
     for element in root:
@@ -302,8 +337,9 @@ def load_ssp(path: Path) -> System:
         info = getattr(system, "simulationInformation", None)
         if info is not None and getattr(info, "fixedStepMaster", None) is not None:
             step = _number(info.fixedStepMaster.stepSize, f"{what}: FixedStepMaster stepSize")
-        return System(ssd.name or path.stem, components, connections, stop, step, workspace=workspace, origin=what,
-                      bonds=bonds)
+        camera, traces, description = _view(ssd_root, what, components)
+        return System(ssd.name or path.stem, components, connections, stop, step, camera=camera, traces=traces,
+                      workspace=workspace, origin=what, bonds=bonds, description=description)
     except BaseException:
         if workspace is not None:
             shutil.rmtree(workspace, ignore_errors=True)
