@@ -47,19 +47,6 @@ class OneLineParser(argparse.ArgumentParser):
         self.exit(2, f"harness: error: {message} (see {self.prog} --help)\n")
 
 
-def system_inputs(system: str) -> tuple[str | Path, ...]:
-    """What a system's command reads: the file or folder, and for an .ssd file the folder of its
-    parameter files and FMUs."""
-    path = Path(system)
-    return (system, path.parent) if path.suffix.lower() == ".ssd" else (system,)
-
-
-def component_files(system_file: str, system) -> tuple[str | Path, ...]:
-    """What a loaded system reads: its own inputs and the FMU of every component, which an output
-    must not replace either."""
-    return (*system_inputs(system_file), *(component.fmu for component in system.components))
-
-
 def command_simulate(args: argparse.Namespace) -> int:
     from harness.fmi.fmus import locate_fmu
     from harness.fmi.simulation import simulate
@@ -153,7 +140,7 @@ def command_demo(args: argparse.Namespace) -> int:
 
 def command_view(args: argparse.Namespace) -> int:
     from harness.view.page import write_view
-    page = write_view(args.scene, args.out)
+    page = write_view(args.scene, args.out, args.step)
     sizes = ", ".join(f"{name} {size / 1024:.0f} KB" for name, size in page.modules.items())
     print(f"wrote {page.path} ({page.bytes / 1024:.0f} KB; WebAssembly modules: {sizes}): open it in a browser, "
           f"or serve the folder with python -m http.server")
@@ -161,6 +148,7 @@ def command_view(args: argparse.Namespace) -> int:
 
 
 def command_run(args: argparse.Namespace) -> int:
+    from harness.cosim.system import component_files, system_inputs
     from harness.cosim.master import Master, MasterOptions
     from harness.cosim.system import load_system
     from harness.output import csv_header, output_file, written
@@ -227,6 +215,7 @@ def write_reference(scene, columns: list[str], times, path: Path) -> None:
 
 
 def command_export(args: argparse.Namespace) -> int:
+    from harness.cosim.system import component_files, system_inputs
     from harness.cosim.ssp_export import write_ssp
     from harness.cosim.system import load_system
     from harness.output import output_file
@@ -326,6 +315,7 @@ def command_chart(args: argparse.Namespace) -> int:
 
 
 def command_plan(args: argparse.Namespace) -> int:
+    from harness.cosim.system import component_files, system_inputs
     from harness.fmi.fmus import build_fmus
     from harness.studies.planner import plan_scene, write_plan_csv
     from harness.cosim.system import load_system
@@ -475,6 +465,7 @@ def build_parser() -> argparse.ArgumentParser:
                                      "methods; index.html?check=T runs T seconds headless)")
     p.add_argument("scene", help="a scene file (.json) or an SSP (.ssp, .ssd, folder)")
     p.add_argument("--out", default="view", help="folder for index.html (default view/)")
+    p.add_argument("--step", type=positive_number, help="communication step [s] (default: the scene's)")
     p.set_defaults(run=command_view)
 
     p = sub.add_parser("demo", help="the main job: thesis scene, coupled scene, plan, validation, charts -> DIR/index.html")

@@ -8,6 +8,7 @@ import signal
 import subprocess
 import tempfile
 from collections.abc import Sequence
+from pathlib import Path
 
 GRACE_SECONDS = 5.0  # after SIGTERM, before SIGKILL
 
@@ -39,3 +40,42 @@ def _end_group(process: subprocess.Popen) -> None:
     except ProcessLookupError:
         pass
     process.wait()
+
+
+def run_programs(commands: Sequence[Sequence[str]], parallel: int = 4) -> list[subprocess.CompletedProcess]:
+    """Runs the commands, at most `parallel` at a time, each as run_program does (what it printed
+    goes to files in its temporary folder, so that no pipe fills up); returns their results in order.
+    An interrupt ends every running program's group before it goes on."""
+    results: list[subprocess.CompletedProcess | None] = [None] * len(commands)
+    waiting = list(enumerate(commands))
+    running: list[tuple[int, subprocess.Popen, tempfile.TemporaryDirectory]] = []
+    try:
+        while waiting or running:
+            while waiting and len(running) < parallel:
+                index, command = waiting.pop(0)
+                scratch = tempfile.TemporaryDirectory(prefix="program-")
+                try:
+                    with open(os.path.join(scratch.name, ".stdout"), "w") as out, \
+                            open(os.path.join(scratch.name, ".stderr"), "w") as err:
+                        process = subprocess.Popen(list(command), stdout=out, stderr=err, text=True,
+                                                   env=dict(os.environ, TMPDIR=scratch.name), start_new_session=True)
+                except BaseException:
+                    scratch.cleanup()
+                    raise
+                running.append((index, process, scratch))
+            for entry in list(running):
+                index, process, scratch = entry
+                try:
+                    process.wait(timeout=0.02)
+                except subprocess.TimeoutExpired:
+                    continue
+                running.remove(entry)
+                with scratch:
+                    printed = [Path(scratch.name, name).read_text(errors="replace") for name in (".stdout", ".stderr")]
+                results[index] = subprocess.CompletedProcess(list(commands[index]), process.returncode, *printed)
+    except BaseException:
+        for _, process, scratch in running:
+            _end_group(process)
+            scratch.cleanup()
+        raise
+    return results  # type: ignore[return-value]

@@ -13,8 +13,10 @@ from __future__ import annotations
 import functools
 import json
 import math
+import os
 import re
 import shutil
+import signal
 import socket
 import subprocess
 import sys
@@ -294,3 +296,108 @@ def test_view_refuses_what_it_cannot_show(tmp_path, capsys):
     assert main(["view", str(tmp_path / "start.json"), "--out", str(out)]) == 2
     assert "simple" in capsys.readouterr().err
     assert not out.exists()
+
+
+def test_names_and_texts_from_the_scene_are_only_text(tmp_path):
+    """A description holding <!-- and </script>, components named __proto__ and constructor: the page
+    still runs and ends where the native master does."""
+    needs_browser()
+    scene = json.loads((SCENES / "coupled_pendulums.json").read_text())
+    renames = {"left": "__proto__", "right": "constructor"}
+    text = json.dumps(scene)
+    for old, new in renames.items():
+        text = text.replace(f'"{old}', f'"{new}')
+    scene = json.loads(text)
+    scene["description"] = "a <!-- comment and </script><script>document.title='owned'</script> in text"
+    scene["components"]["spring"]["fmu"] = str(build_dir() / "fmus" / "Spring.fmu")
+    for name in renames.values():
+        scene["components"][name]["fmu"] = str(build_dir() / "fmus" / "SimplePendulum.fmu")
+    path = tmp_path / "odd.json"
+    path.write_text(json.dumps(scene))
+    assert main(["view", str(path), "--out", str(tmp_path / "view")]) == 0
+    checked = drive("check", f"{(tmp_path / 'view' / 'index.html').as_uri()}?check=1")
+    assert set(checked["components"]) == {"spring", "__proto__", "constructor"}
+    with load_system(path) as system:
+        master = Master(system, MasterOptions(stop=1.0, step=system.step))
+        try:
+            result = master.run()
+        finally:
+            master.free()
+    assert_agrees(checked, dict(zip(result.columns, result.values[-1])), 1e-12)
+    seen = drive("shot", (tmp_path / "view" / "index.html").as_uri(), str(tmp_path / "odd.png"), "1")
+    assert not seen["problems"] and not seen["problem"]
+
+
+def test_dragged_angles_stay_in_one_turn_and_typed_nonsense_is_refused():
+    needs_browser()
+    plan = [{"drag": ["simple", "x", "y", [math.sin(2.5), -math.cos(2.5)]]},
+            {"drag": ["simple", "x", "y", [math.sin(-2.5), -math.cos(-2.5)]]},  # over the top: phi passes pi
+            {"start": ["start", "simple"]},
+            {"set": ["simple", "h", ""]}, {"problem": "empty"}, {"start": ["kept", "simple"]}]
+    seen = session("thesis_scene", plan)
+    assert seen["start"]["phi"] == pytest.approx(-2.5, abs=seen["metres_per_pixel"])  # not 2 pi - 2.5
+    assert "h = '' is not a number" in seen["empty"] and seen["kept"].get("h", 0.008) == 0.008
+
+
+@pytest.mark.parametrize("change, message", [
+    ({"step": 1e-7}, "macro steps per frame"), ({"step": 100.0}, "less than once a minute"),
+    ({"camera": {"frame_rate": 1e-300}}, "macro steps per frame"),
+    ({"connections": [["simple.x", "double.nope"]]}, "nope"),
+    ({"connections": [["simple.n_rhs", "double.F_x"]]}, "n_rhs")])
+def test_view_refuses_a_scene_the_page_could_not_run(tmp_path, capsys, change, message):
+    scene = json.loads((SCENES / "thesis_scene.json").read_text())
+    for key, value in change.items():
+        scene[key] = dict(scene[key], **value) if isinstance(value, dict) else value
+    for component in scene["components"].values():
+        component["fmu"] = str(build_dir() / "fmus" / f"{component['fmu']}.fmu")
+    (tmp_path / "scene.json").write_text(json.dumps(scene))
+    begin = time.perf_counter()
+    assert main(["view", str(tmp_path / "scene.json"), "--out", str(tmp_path / "out")]) == 2
+    assert message in capsys.readouterr().err
+    assert not (tmp_path / "out").exists()
+    assert time.perf_counter() - begin < 5  # refused before any module is built
+
+
+def test_view_never_writes_over_its_inputs(tmp_path, capsys):
+    scene = tmp_path / "scene.json"
+    shutil.copy(SCENES / "coupled_pendulums.json", scene)
+    before = scene.read_bytes()
+    (tmp_path / "out").mkdir()
+    (tmp_path / "out" / "index.html").symlink_to(scene)
+    assert main(["view", str(scene), "--out", str(tmp_path / "out")]) == 2
+    assert "is this command's input" in capsys.readouterr().err
+    assert scene.read_bytes() == before
+
+
+def test_an_interrupted_view_ends_its_compilers_and_leaves_nothing(tmp_path):
+    needs_wasm_tools()
+    scratch = tmp_path / "tmp"
+    scratch.mkdir()
+    environment = dict(os.environ, TMPDIR=str(scratch))
+    process = subprocess.Popen([sys.executable, "-m", "harness", "view", str(SCENES / "thesis_scene.json"), "--out",
+                                str(tmp_path / "out")], env=environment, cwd=PROJECT_ROOT,
+                               stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    deadline = time.time() + 60
+    while time.time() < deadline and not any(scratch.glob("wasm-*/module.wasm.tmp*")) \
+            and not _compilers_in(scratch):
+        time.sleep(0.05)
+    assert _compilers_in(scratch), "no compiler started"
+    process.send_signal(signal.SIGINT)
+    _, err = process.communicate(timeout=30)
+    assert process.returncode == 130, err
+    time.sleep(0.2)
+    assert not _compilers_in(scratch)  # every clang ended with the harness, not after it
+    assert list(scratch.iterdir()) == []  # its work folders removed
+    assert not (tmp_path / "out").exists()
+
+
+def _compilers_in(scratch: Path) -> list[str]:
+    """Running processes whose command line names the folder (the clang jobs of one view)."""
+    found = []
+    for proc in Path("/proc").iterdir():
+        try:
+            if proc.name.isdigit() and str(scratch) in (proc / "cmdline").read_bytes().decode(errors="replace"):
+                found.append(proc.name)
+        except OSError:
+            continue
+    return found

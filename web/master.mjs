@@ -12,6 +12,14 @@ export const EXTRAPOLATIONS = ["hold", "linear"];
 const OK = 0, DISCARD = 2;
 const STATUS_NAMES = ["OK", "Warning", "Discard", "Error", "Fatal", "Pending"];
 
+/** A table keyed by names from the scene (components, variables): without a prototype, so that a
+ * name such as "__proto__" or "constructor" is a key like any other. */
+export function table(entries = []) {
+  const made = Object.create(null);
+  for (const [key, value] of entries) made[key] = value;
+  return made;
+}
+
 /** A failed FMI call: the component, the call, its status and the FMU's last message. */
 export class FmiError extends Error {}
 
@@ -51,8 +59,8 @@ export class Unit {
     this.name = name;
     this.meta = meta;
     this.instance = fmu.instantiate(name, meta.guid);
-    this.sceneStart = { ...start };
-    this.start = { ...start };
+    this.sceneStart = table(Object.entries(start));
+    this.start = table(Object.entries(start));
     this.begun = false;
     this.realOutputs = meta.real_outputs;
     this.integerOutputs = meta.integer_outputs;
@@ -118,7 +126,7 @@ export class Unit {
 
   /** Every output's value now, by name (integer outputs read from the FMU). */
   values() {
-    const values = {};
+    const values = table();
     this.realOutputs.forEach((name, k) => { values[name] = this.y[k]; });
     if (this.integerPort) {
       this.check(this.integerPort.getInteger(), "fmi2GetInteger");
@@ -144,7 +152,7 @@ export class Unit {
 /** The scene's units stepped together. `scene` is the page's scene (harness/view/page.py). */
 export class Master {
   static async create(scene, options = {}) {
-    const modules = {};
+    const modules = table();
     for (const [key, meta] of Object.entries(scene.modules)) {
       modules[key] = await FmuModule.load(decodeBase64(meta.wasm));
     }
@@ -162,7 +170,7 @@ export class Master {
     this.linear = extrapolation === "linear";
     this.H = scene.step;
     this.units = scene.components.map((c) => new Unit(c.name, modules[c.module], scene.modules[c.module], c.start));
-    const index = Object.fromEntries(this.units.map((u, k) => [u.name, k]));
+    const index = table(this.units.map((u, k) => [u.name, k]));
     // per receiving unit: [source index, source output indices, input indices]
     this.routes = this.units.map(() => new Map());
     for (const [source, output, target, input] of scene.connections) {
@@ -284,7 +292,7 @@ export class Master {
   /** {"time", "components": {name: {output: value}}}: every output of every component (the states
    * are outputs in these FMUs). */
   snapshot() {
-    const components = {};
+    const components = table();
     for (const unit of this.units) components[unit.name] = unit.values();
     return { time: this.time, components };
   }

@@ -21,7 +21,7 @@ export class Poser {
   positions(start, q, names) {
     if (this.begun) this.instance.reset();
     this.begun = true;
-    const values = { ...start };
+    const values = Object.assign(Object.create(null), start);
     this.meta.coordinates.forEach(([coordinate], i) => { values[coordinate] = q[i]; });
     const check = beginInstance(this.instance, this.meta, values, 0, this.name);
     check(this.instance.exitInitialization(), "fmi2ExitInitializationMode");
@@ -70,8 +70,10 @@ export class Poser {
       }
       if (!improved) break; // the nearest pose: the point cannot come closer (out of reach)
     }
-    const posed = { ...start };
-    this.meta.coordinates.forEach(([coordinate], i) => { posed[coordinate] = q[i]; });
+    const posed = Object.assign(Object.create(null), start);
+    // an angle dragged round and round is the same angle: kept in (-pi, pi]
+    const wrapped = (value, angle) => (angle ? value - 2 * Math.PI * Math.ceil((value - Math.PI) / (2 * Math.PI)) : value);
+    this.meta.coordinates.forEach(([coordinate, , angle], i) => { posed[coordinate] = wrapped(q[i], angle); });
     return { start: posed, distance: norm(r) };
   }
 

@@ -2,7 +2,7 @@
 // pauses, steps, restarts, drags a mass to a new start and chooses each object's method and step.
 // index.html?check=T runs the scene to T without drawing and writes the final state as JSON into
 // <pre id="check">. Optional parameters: algorithm=jacobi|gauss-seidel, extrapolation=hold|linear.
-import { ALGORITHMS, EXTRAPOLATIONS, FmiError, Master } from "./master.mjs";
+import { ALGORITHMS, EXTRAPOLATIONS, FmiError, Master, table } from "./master.mjs";
 import { Poser } from "./pose.mjs";
 import { exactSimplePendulum } from "./exact.mjs";
 
@@ -40,7 +40,7 @@ async function check(T) {
 /** Groups of coupled components (joined by connections, either way). */
 function groups() {
   const names = scene.components.map((c) => c.name);
-  const group = Object.fromEntries(names.map((n) => [n, n]));
+  const group = table(names.map((n) => [n, n]));
   const find = (n) => (group[n] === n ? n : (group[n] = find(group[n])));
   for (const [source, , target] of scene.connections) group[find(source)] = find(target);
   const found = new Map();
@@ -61,10 +61,10 @@ class LiveView {
     this.speed = 1;
     this.frameTime = 1 / scene.frame_rate;
     this.frameCost = 0; // milliseconds of computation per frame, smoothed
-    this.posers = {};
-    this.planes = {};
+    this.posers = table();
+    this.planes = table();
     this.sources = this.inputSources();
-    this.colours = {};
+    this.colours = table();
     scene.components.forEach((c, k) => { this.colours[c.name] = COLOURS[k % COLOURS.length]; });
     this.layout();
     this.controls();
@@ -74,9 +74,9 @@ class LiveView {
 
   /** For each unit: input name -> [source unit, output], to draw elements between their ends. */
   inputSources() {
-    const sources = {};
+    const sources = table();
     for (const [source, output, target, input] of scene.connections) {
-      (sources[target] ??= {})[input] = [source, output];
+      (sources[target] ??= table())[input] = [source, output];
     }
     return sources;
   }
@@ -165,7 +165,7 @@ class LiveView {
     this.panels = panels;
     this.canvas.width = Math.ceil(left);
     this.canvas.height = Math.ceil(height * this.scale);
-    this.panelOf = {};
+    this.panelOf = table();
     for (const panel of panels) for (const name of panel.names) this.panelOf[name] = panel;
   }
 
@@ -190,7 +190,7 @@ class LiveView {
     };
     $("restart").onclick = () => this.restart();
     $("original").onclick = () => {
-      for (const unit of this.master.units) unit.start = { ...unit.sceneStart };
+      for (const unit of this.master.units) unit.start = table(Object.entries(unit.sceneStart));
       this.rebuildTable();
       this.restart();
     };
@@ -215,7 +215,7 @@ class LiveView {
   rebuildTable() {
     const body = $("components").tBodies[0];
     body.replaceChildren();
-    this.cells = {};
+    this.cells = table();
     for (const unit of this.master.units) {
       const row = body.insertRow(), meta = unit.meta;
       const nameCell = row.insertCell();
@@ -244,7 +244,12 @@ class LiveView {
         input.step = "any";
         input.value = unit.setting(name);
         Object.assign(input.dataset, { component: unit.name, setting: name });
-        input.onchange = () => this.change(unit, name, Number(input.value), input);
+        input.onchange = () => {
+          const value = input.value.trim() === "" ? NaN : Number(input.value);
+          if (Number.isFinite(value)) return this.change(unit, name, value, input);
+          $("problem").textContent = `${unit.name}: ${name} = '${input.value}' is not a number; kept ${unit.setting(name)}`;
+          input.value = unit.setting(name);
+        };
         cell.append(input);
       }
       this.cells[unit.name] = { energy: row.insertCell(), change: row.insertCell(), error: row.insertCell() };
@@ -272,8 +277,8 @@ class LiveView {
       if (report) $("problem").textContent = String(error.message ?? error);
       return false;
     }
-    this.traces = {};
-    this.energy0 = Object.fromEntries(this.master.units.map((u) => [u.name, u.energy]));
+    this.traces = table();
+    this.energy0 = table(this.master.units.map((u) => [u.name, u.energy]));
     this.recordTraces();
     this.simTarget = 0;
     this.draw();
@@ -283,6 +288,7 @@ class LiveView {
   setRunning(running) {
     this.running = running;
     $("play").textContent = running ? "Pause" : "Play";
+    this.report();
     this.nextFrame = undefined;
   }
 
@@ -393,7 +399,7 @@ class LiveView {
     const master = this.master, format = (v, digits = 4) => (Number.isFinite(v) ? v.toPrecision(digits) : "-");
     const total = master.units.reduce((s, u) => s + (Number.isFinite(u.energy) ? u.energy : 0), 0);
     const total0 = Object.values(this.energy0).reduce((s, e) => s + (Number.isFinite(e) ? e : 0), 0);
-    $("status").textContent = `t = ${master.time.toFixed(2)} s   energy ${format(total, 6)} J ` +
+    $("status").textContent = `${this.running ? "" : "paused   "}t = ${master.time.toFixed(2)} s   energy ${format(total, 6)} J ` +
       `(change ${format(total - total0, 3)} J)   ${scene.frame_rate} frames/s   ` +
       `computation ${this.frameCost.toFixed(3)} ms per frame   scale ${this.scale.toFixed(0)} px/m`;
     for (const unit of master.units) {

@@ -11,7 +11,8 @@ from harness.cosim.ssp_file import load_ssp
 from harness.cosim.structure import Component, Connection, System, component_name_problem
 from harness.errors import HarnessError
 
-__all__ = ["Component", "Connection", "System", "component_name_problem", "load_system"]
+__all__ = ["Component", "Connection", "System", "component_files", "component_name_problem", "load_system",
+           "system_inputs"]
 
 
 def load_system(path: str | Path) -> System:
@@ -29,3 +30,16 @@ def load_system(path: str | Path) -> System:
         system.close()
         raise
     return system
+
+
+def system_inputs(system: str | Path) -> tuple[str | Path, ...]:
+    """What a system's command reads: the file or folder, and for an .ssd file the folder of its
+    parameter files and FMUs."""
+    path = Path(system)
+    return (system, path.parent) if path.suffix.lower() == ".ssd" else (system,)
+
+
+def component_files(system_file: str | Path, system: System) -> tuple[str | Path, ...]:
+    """What a loaded system reads: its own inputs and the FMU of every component, which an output
+    must not replace either."""
+    return (*system_inputs(system_file), *(component.fmu for component in system.components))

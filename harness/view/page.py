@@ -13,16 +13,18 @@ from __future__ import annotations
 import base64
 import html
 import json
+import math
 import re
 from dataclasses import dataclass
 from pathlib import Path
 
-from harness.cosim.system import System, load_system
+from harness.cosim.master import MasterOptions, run_system
+from harness.cosim.system import System, component_files, load_system
 from harness.errors import HarnessError, where
 from harness.fmi.fmu_instance import FmuInstance, read_description
 from harness.fmi.simulation import MAX_POINTS
 from harness.objects.proof import object_file_in
-from harness.output import output_folder, written
+from harness.output import output_file, output_folder, written
 from harness.view.wasm import WEB, build_modules
 
 # The page's script: web/ modules in dependency order, joined (their relative imports dropped).
@@ -30,6 +32,8 @@ SCRIPTS = ("fmu.mjs", "exact.mjs", "master.mjs", "pose.mjs", "view.mjs")
 TEMPLATE = "view.html"
 # The objects whose motion is known exactly (web/exact.mjs): the page shows their error live.
 EXACT = {"SimplePendulum": "simple pendulum"}
+MAX_FRAME_RATE = 60.0
+MAX_STEPS_PER_FRAME = 10_000
 
 
 @dataclass
@@ -39,22 +43,52 @@ class ViewPage:
     modules: dict[str, int]      # model identifier -> size of its WebAssembly module [bytes]
 
 
-def write_view(scene: str | Path, out: str | Path) -> ViewPage:
-    """Writes DIR/index.html for the scene (a scene file or an SSP); see the module's note."""
+def write_view(scene: str | Path, out: str | Path, step: float | None = None) -> ViewPage:
+    """Writes DIR/index.html for the scene (a scene file or an SSP), stepped at its communication step
+    or at `step`; see the module's note."""
+    if str(out) == "":
+        raise HarnessError("--out '': names no folder")
     if Path(out).exists() and not Path(out).is_dir():
         raise HarnessError(f"--out {out}: is a file, not a folder")
     with load_system(scene) as system:
+        if step is not None:
+            if not (step > 0 and math.isfinite(step)):
+                raise HarnessError(f"--step {step}: must be a positive number")
+            system.step = step
         if system.step is None:
-            raise HarnessError(f"{scene}: the live view steps the scene at its communication step: give \"step\"")
+            raise HarnessError(f"{scene}: the live view steps the scene at its communication step: give \"step\" in "
+                               "the scene, or --step")
+        frame_rate = _frame_rate(system)
+        # refused before anything is built: an output that would replace an input
+        index = output_file(Path(out) / "index.html", "--out", component_files(scene, system))
+        # the scene as the harness's master runs it: connections, start values, a first step
+        run_system(system, MasterOptions(stop=system.step, step=system.step))
         fmus = list(dict.fromkeys(c.fmu for c in system.components))
         modules = build_modules(fmus)
         keys = _module_keys(fmus)
-        payload = _payload(system, {keys[f]: _module(f, modules[f]) for f in fmus}, keys)
+        payload = _payload(system, {keys[f]: _module(f, modules[f]) for f in fmus}, keys, frame_rate)
     text = _page(payload)
-    path = output_folder(out, "--out") / "index.html"  # made only now: a refused scene leaves no folder
-    with written(path) as sink:
+    output_folder(out, "--out")  # made only now: a refused scene leaves no folder
+    with written(index) as sink:
         sink.write(text)
-    return ViewPage(path, len(text.encode()), {payload["modules"][keys[f]]["identifier"]: len(modules[f]) for f in fmus})
+    return ViewPage(index, len(text.encode()), {payload["modules"][keys[f]]["identifier"]: len(modules[f])
+                                                for f in fmus})
+
+
+def _frame_rate(system: System) -> float:
+    """The frames per second the page draws: the camera's, else one per step, between 10 and 60 (a
+    display shows no more). A frame may take at most MAX_STEPS_PER_FRAME macro steps, and a step may
+    wait at most a minute of frames."""
+    rate = min(float(system.camera.get("frame_rate", max(10.0, 1.0 / system.step))), MAX_FRAME_RATE)
+    steps = 1.0 / (rate * system.step)
+    if steps > MAX_STEPS_PER_FRAME:
+        raise HarnessError(f"{system.name}: at {rate:g} frames per second a step of {system.step:g} s makes "
+                           f"{steps:.3g} macro steps per frame, more than the live view's {MAX_STEPS_PER_FRAME}: "
+                           "choose a larger step (--step) or a higher frame rate")
+    if steps * 60 * rate < 1:
+        raise HarnessError(f"{system.name}: a step of {system.step:g} s would show the scene move less than once a "
+                           "minute: choose a smaller step (--step) or a lower frame rate")
+    return rate
 
 
 def _module_keys(fmus: list[Path]) -> dict[Path, str]:
@@ -97,7 +131,7 @@ def _module(fmu: Path, wasm: bytes) -> dict:
         "coordinates": [], "points": [], "anchor": None, "spring_ends": [],
     }
     if spec is not None:
-        module["coordinates"] = [[c.name, c.velocity] for c in spec.coordinates]
+        module["coordinates"] = [[c.name, c.velocity, c.unit == "rad"] for c in spec.coordinates]  # angles wrap
         coordinates = set(spec.q)
         # each point: its position outputs by axis, and whether the coordinates move it (a mass or a
         # joint a person can drag, not a driven pivot)
@@ -122,10 +156,10 @@ def _number(variable) -> float | int:
     return int(value)
 
 
-def _payload(system: System, modules: dict[str, dict], keys: dict[Path, str]) -> dict:
+def _payload(system: System, modules: dict[str, dict], keys: dict[Path, str], frame_rate: float) -> dict:
     components = []
     for component in system.components:
-        # the start values, encoded as the FMU takes them, and checked by starting the native FMU once
+        # the start values, encoded as the FMU takes them
         with where(system.origin), where(f"component {component.name!r}"), \
                 FmuInstance(component.fmu, name=component.name) as instance:
             start = {name: instance.encode(name, value) for name, value in component.start.items()}
@@ -133,11 +167,9 @@ def _payload(system: System, modules: dict[str, dict], keys: dict[Path, str]) ->
             if unknown:
                 raise HarnessError(f"start values of type {instance.variables[unknown[0]].type} ({', '.join(unknown)}) "
                                    "cannot be set in the live view")
-            instance.initialize(0.0, **component.start)
         components.append({"name": component.name, "module": keys[component.fmu], "start": start,
                            "traces": [list(pair) for pair in system.traces.get(component.name, [])]})
     camera = system.camera
-    frame_rate = float(camera.get("frame_rate", min(60.0, max(10.0, 1.0 / system.step))))
     return {
         "name": system.name, "description": system.description,
         "step": system.step, "stop": system.stop, "frame_rate": frame_rate, "scale": camera.get("scale"),
@@ -162,7 +194,8 @@ def bundled_script() -> str:
 
 
 def _page(payload: dict) -> str:
-    scene = json.dumps(payload, separators=(",", ":")).replace("</", "<\\/").replace("<!--", "<\\!--")
+    # no "<" at all inside the script element (no </script>, no <!--): JSON's own escape keeps it valid
+    scene = json.dumps(payload, separators=(",", ":")).replace("<", "\\u003c")
     script = bundled_script()
     if "</script" in script:
         raise HarnessError("web/: a script holds '</script', which would end the page's script early")
