@@ -18,15 +18,19 @@ def run_program(command: Sequence[str], stdout=subprocess.PIPE, stderr=subproces
     (Ctrl-C, SIGTERM, any exception) the program's whole process group is ended before the
     interrupt goes on."""
     with tempfile.TemporaryDirectory(prefix="program-") as scratch:
-        environment = dict(os.environ, TMPDIR=scratch)  # gcc's cc*.s and cc*.o go here
-        process = subprocess.Popen(list(command), stdout=stdout, stderr=stderr, text=True, env=environment,
-                                   start_new_session=True)
+        process = _start(command, scratch, stdout, stderr)
         try:
             out, err = process.communicate()
         except BaseException:
             _end_group(process)
             raise
         return subprocess.CompletedProcess(list(command), process.returncode, out, err)
+
+
+def _start(command: Sequence[str], scratch: str, stdout, stderr) -> subprocess.Popen:
+    """The program in a process group of its own, its temporary files in scratch (gcc's cc*.s, cc*.o)."""
+    return subprocess.Popen(list(command), stdout=stdout, stderr=stderr, text=True, env=dict(os.environ, TMPDIR=scratch),
+                            start_new_session=True)
 
 
 def _end_group(process: subprocess.Popen) -> None:
@@ -57,8 +61,7 @@ def run_programs(commands: Sequence[Sequence[str]], parallel: int = 4) -> list[s
                 try:
                     with open(os.path.join(scratch.name, ".stdout"), "w") as out, \
                             open(os.path.join(scratch.name, ".stderr"), "w") as err:
-                        process = subprocess.Popen(list(command), stdout=out, stderr=err, text=True,
-                                                   env=dict(os.environ, TMPDIR=scratch.name), start_new_session=True)
+                        process = _start(command, scratch.name, out, err)
                 except BaseException:
                     scratch.cleanup()
                     raise

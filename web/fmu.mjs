@@ -60,80 +60,43 @@ export class FmuModule {
   }
 }
 
-/** One fmi2Component with preallocated exchange buffers. */
+/** One fmi2Component. Values go in and out through ports (below): a master keeps one per set of
+ * variables it exchanges every step; a single call borrows one for its duration. */
 export class FmuInstance {
   constructor(module_, component) {
     this.module = module_;
     this.fmi = module_.exports;
     this.component = component;
-    this.capacity = 0;
-  }
-
-  /** The value references vrs in the module's memory, with room for as many values. */
-  prepare(vrs) {
-    if (vrs.length > this.capacity) {
-      if (this.capacity) ["vrs", "doubles", "ints", "orders"].forEach((k) => this.fmi.free(this[k]));
-      this.capacity = Math.max(vrs.length, 16);
-      this.vrs = this.fmi.malloc(4 * this.capacity);
-      this.doubles = this.fmi.malloc(8 * this.capacity);
-      this.ints = this.fmi.malloc(4 * this.capacity);
-      this.orders = this.fmi.malloc(4 * this.capacity);
-    }
-    new Uint32Array(this.module.memory, this.vrs, vrs.length).set(vrs);
   }
 
   call(name, ...args) {
     return this.fmi[name](this.component, ...args);
   }
 
-  setReal(vrs, values) {
-    this.prepare(vrs);
-    new Float64Array(this.module.memory, this.doubles, vrs.length).set(values);
-    return this.call("fmi2SetReal", this.vrs, vrs.length, this.doubles);
-  }
-
-  getReal(vrs) { // [status, Float64Array copy]
-    this.prepare(vrs);
-    const status = this.call("fmi2GetReal", this.vrs, vrs.length, this.doubles);
-    return [status, new Float64Array(this.module.memory, this.doubles, vrs.length).slice()];
-  }
-
-  setInteger(vrs, values) {
-    this.prepare(vrs);
-    new Int32Array(this.module.memory, this.ints, vrs.length).set(values);
-    return this.call("fmi2SetInteger", this.vrs, vrs.length, this.ints);
-  }
-
-  getInteger(vrs) { // [status, Int32Array copy]
-    this.prepare(vrs);
-    const status = this.call("fmi2GetInteger", this.vrs, vrs.length, this.ints);
-    return [status, new Int32Array(this.module.memory, this.ints, vrs.length).slice()];
-  }
-
-  setBoolean(vrs, values) { // fmi2Boolean is an int
-    this.prepare(vrs);
-    new Int32Array(this.module.memory, this.ints, vrs.length).set(values);
-    return this.call("fmi2SetBoolean", this.vrs, vrs.length, this.ints);
-  }
-
-  setInputDerivatives(vrs, values) { // first-order slopes
-    this.prepare(vrs);
-    new Int32Array(this.module.memory, this.orders, vrs.length).fill(1);
-    new Float64Array(this.module.memory, this.doubles, vrs.length).set(values);
-    return this.call("fmi2SetRealInputDerivatives", this.vrs, vrs.length, this.orders, this.doubles);
-  }
-
-  getOutputDerivatives(vrs) { // [status, Float64Array copy]
-    this.prepare(vrs);
-    new Int32Array(this.module.memory, this.orders, vrs.length).fill(1);
-    const status = this.call("fmi2GetRealOutputDerivatives", this.vrs, vrs.length, this.orders, this.doubles);
-    return [status, new Float64Array(this.module.memory, this.doubles, vrs.length).slice()];
-  }
-
-  /** A fixed set of variables with its own buffers in the module's memory, for the calls a master
-   * makes every step: no allocation per call. */
+  /** A fixed set of variables with its own buffers in the module's memory: no allocation per call. */
   port(vrs) {
     return new Port(this, vrs);
+  }
+
+  /** use(port) for the variables vrs, the port freed afterwards. */
+  withPort(vrs, use) {
+    const port = new Port(this, vrs);
+    try {
+      return use(port);
+    } finally {
+      port.free();
+    }
+  }
+
+  set(kind, vrs, values) { // kind: real, integer or boolean
+    return this.withPort(vrs, (port) => port.set(kind, values));
+  }
+
+  setReal(vrs, values) { return this.set("real", vrs, values); }
+  setInteger(vrs, values) { return this.set("integer", vrs, values); }
+
+  getReal(vrs) { // [status, Float64Array copy]
+    return this.withPort(vrs, (port) => [port.getReal(), port.values.slice()]);
   }
 
   setupExperiment(start = 0) {
@@ -144,12 +107,7 @@ export class FmuInstance {
   exitInitialization() { return this.call("fmi2ExitInitializationMode"); }
   doStep(t, h) { return this.call("fmi2DoStep", t, h, 1); }
   reset() { return this.call("fmi2Reset"); }
-
-  free() {
-    this.call("fmi2FreeInstance");
-    if (this.capacity) ["vrs", "doubles", "ints", "orders"].forEach((k) => this.fmi.free(this[k]));
-    this.capacity = 0;
-  }
+  free() { return this.call("fmi2FreeInstance"); }
 }
 
 /** The value references of a port and room for their values, orders and integers, allocated once;
@@ -180,15 +138,22 @@ export class Port {
     return this;
   }
 
+  setReal(values) {
+    this.views().values.set(values);
+    return this.fmi.fmi2SetReal(this.component, this.vrs, this.n, this.doubles);
+  }
+
   getReal() { // into this.values
     const status = this.fmi.fmi2GetReal(this.component, this.vrs, this.n, this.doubles);
     this.views();
     return status;
   }
 
-  setReal(values) {
-    this.views().values.set(values);
-    return this.fmi.fmi2SetReal(this.component, this.vrs, this.n, this.doubles);
+  /** Hands values over by fmi2Set<Kind>: kind real (floats), integer or boolean (ints). */
+  set(kind, values) {
+    if (kind === "real") return this.setReal(values);
+    this.views().integers.set(values);
+    return this.fmi[kind === "integer" ? "fmi2SetInteger" : "fmi2SetBoolean"](this.component, this.vrs, this.n, this.ints);
   }
 
   getOutputDerivatives() { // first-order, into this.values

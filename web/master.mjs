@@ -44,9 +44,9 @@ export function beginInstance(instance, meta, start, t0, what) {
     }
   };
   check(instance.setupExperiment(t0), "fmi2SetupExperiment");
-  if (calls.integer[0].length) check(instance.setInteger(...calls.integer), "fmi2SetInteger");
-  if (calls.boolean[0].length) check(instance.setBoolean(...calls.boolean), "fmi2SetBoolean");
-  if (calls.real[0].length) check(instance.setReal(...calls.real), "fmi2SetReal");
+  for (const [kind, call] of [["integer", "fmi2SetInteger"], ["boolean", "fmi2SetBoolean"], ["real", "fmi2SetReal"]]) {
+    if (calls[kind][0].length) check(instance.set(kind, ...calls[kind]), call);
+  }
   check(instance.enterInitialization(), "fmi2EnterInitializationMode");
   return check;
 }
@@ -252,18 +252,16 @@ export class Master {
   step(end = (this.steps + 1) * this.H) {
     const t = this.time, H = end - t, units = this.units, stepped = this.stepped;
     stepped.fill(false);
-    const discarded = (unit) => `${unit.name} could not complete the step from t = ${t}: ` +
-                                `${unit.instance.module.messages.at(-1) ?? "no message"}`;
     if (this.algorithm === "jacobi") {
       units.forEach((_, k) => this.feed(k, H, stepped));
       for (const unit of units) {
-        if (unit.check(unit.instance.doStep(t, H), "fmi2DoStep") === DISCARD) return discarded(unit);
+        if (unit.check(unit.instance.doStep(t, H), "fmi2DoStep") === DISCARD) return discarded(unit, t);
       }
       for (const unit of units) unit.readOutputs(this.linear);
     } else {
       for (let k = 0; k < units.length; k++) {
         this.feed(k, H, stepped);
-        if (units[k].check(units[k].instance.doStep(t, H), "fmi2DoStep") === DISCARD) return discarded(units[k]);
+        if (units[k].check(units[k].instance.doStep(t, H), "fmi2DoStep") === DISCARD) return discarded(units[k], t);
         units[k].readOutputs(this.linear);
         stepped[k] = true;
       }
@@ -301,6 +299,11 @@ export class Master {
     for (const unit of this.units) unit.free();
     this.units = [];
   }
+}
+
+/** What stopped a macro step: the unit that discarded it, and the FMU's message. */
+function discarded(unit, t) {
+  return `${unit.name} could not complete the step from t = ${t}: ${unit.instance.module.messages.at(-1) ?? "no message"}`;
 }
 
 export function decodeBase64(text) {

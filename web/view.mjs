@@ -61,6 +61,7 @@ class LiveView {
     this.speed = 1;
     this.frameTime = 1 / scene.frame_rate;
     this.frameCost = 0; // milliseconds of computation per frame, smoothed
+    this.spec = table(scene.components.map((c) => [c.name, c])); // each component as the scene gives it
     this.posers = table();
     this.planes = table();
     this.sources = this.inputSources();
@@ -84,7 +85,7 @@ class LiveView {
   /** The two axes a unit is drawn in: those of its first trace (a 3-D object traced from above is
    * drawn from above), else x and y. */
   plane(unit) {
-    const trace = scene.components.find((c) => c.name === unit.name).traces[0];
+    const trace = this.spec[unit.name].traces[0];
     for (const point of trace ? unit.meta.points : []) {
       const axis = (name) => Object.keys(point.axes).find((a) => point.axes[a] === name);
       if (axis(trace[0]) && axis(trace[1])) return [axis(trace[0]), axis(trace[1])];
@@ -114,8 +115,7 @@ class LiveView {
   }
 
   tracePoints(unit) {
-    const traces = scene.components.find((c) => c.name === unit.name).traces;
-    return traces.map(([x, y]) => [unit.output(x), unit.output(y)]);
+    return this.spec[unit.name].traces.map(([x, y]) => [unit.output(x), unit.output(y)]);
   }
 
   /** Panels (one per group when the scene lays them side by side) framed around what the scene
@@ -449,8 +449,8 @@ class LiveView {
     if (!held.moved && Math.hypot(at[0] - held.origin[0], at[1] - held.origin[1]) < 3) return; // a click
     held.moved = true;
     const unit = held.unit, meta = unit.meta;
-    const poser = (this.posers[unit.name] ??= new Poser(this.master.modules[scene.components.find(
-      (c) => c.name === unit.name).module], meta, unit.name));
+    const poser = (this.posers[unit.name] ??= new Poser(this.master.modules[this.spec[unit.name].module], meta,
+                                                        unit.name));
     const q0 = meta.coordinates.map(([q]) => unit.output(q));
     try {
       const { start } = poser.pose(unit.start, q0, ...held.grab, this.toWorld(unit.name, at));
