@@ -11,12 +11,13 @@ from harness.objects.thesis.reference import exact_simple_pendulum, slope
 
 ORDERS = {"euler": 1, "midpoint": 2, "heun": 2, "rk3": 3, "rk4": 4, "nystrom5": 5,
           "ab2": 2, "ab3": 3, "ab4": 4, "ab5": 5, "ab6": 6, "implicit_midpoint": 2, "gauss_legendre4": 4,
-          "stormer_verlet": 2}
+          "stormer_verlet": 2, "abm2": 2, "abm3": 3, "abm4": 4, "abm5": 5, "abm6": 6, "trapezoid": 2}
 # Steps where each method is in its asymptotic range on the pendulum (errors 1e-2 ... 1e-11).
 FINE, MEDIUM, COARSE = [0.02, 0.01, 0.005, 0.0025], [0.04, 0.02, 0.01, 0.005], [0.08, 0.04, 0.02, 0.01]
 STEPS = {"euler": [2e-3, 1e-3, 5e-4, 2.5e-4], "midpoint": FINE, "heun": FINE, "rk3": MEDIUM, "rk4": COARSE,
          "nystrom5": [0.1, 0.05, 0.025, 0.0125], "ab2": FINE, "ab3": FINE, "ab4": MEDIUM, "ab5": MEDIUM,
-         "ab6": MEDIUM, "implicit_midpoint": FINE, "gauss_legendre4": COARSE, "stormer_verlet": FINE}
+         "ab6": MEDIUM, "implicit_midpoint": FINE, "gauss_legendre4": COARSE, "stormer_verlet": FINE,
+         "abm2": FINE, "abm3": FINE, "abm4": MEDIUM, "abm5": MEDIUM, "abm6": MEDIUM, "trapezoid": FINE}
 T = 2.0  # about one period at phi0 = 0.5
 PHI0 = 0.5
 

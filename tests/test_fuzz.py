@@ -12,12 +12,13 @@ from hypothesis import strategies as st
 
 from harness.fmi.fmu_instance import OK, FmuInstance
 from harness.fmi.fmus import FMU_NAMES
+from harness.fmi.methods import SOLVERS
 
 D = ctypes.c_double
 values = st.one_of(st.floats(allow_nan=True, allow_infinity=True), st.floats(-10, 10), st.sampled_from([0.0, 1e-9]))
 operations = st.lists(st.one_of(
     st.tuples(st.just("set_real"), st.integers(0, 40), values),
-    st.tuples(st.just("set_integer"), st.integers(0, 40), st.integers(-3, 15)),
+    st.tuples(st.just("set_integer"), st.integers(0, 40), st.integers(-3, len(SOLVERS) + 2)),
     st.tuples(st.just("set_slope"), st.integers(0, 40), values),
     st.tuples(st.just("step"), st.floats(-0.5, 2.0), st.sampled_from([0.0, 0.3, 1.0])),
     st.tuples(st.sampled_from(["enter", "exit", "terminate", "reset", "save", "restore", "read"]), st.none(),

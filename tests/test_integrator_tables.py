@@ -86,7 +86,8 @@ def test_solver_order_matches_the_xml_enumeration(tables):
     items = [item.get("name") for item in root.iter("Item") if item.get("name") in tables]
     assert items == list(tables) == ["euler", "midpoint", "heun", "rk3", "rk4", "rkf45", "nystrom5",
                                      "ab2", "ab3", "ab4", "ab5", "ab6",
-                                     "implicit_midpoint", "gauss_legendre4", "stormer_verlet"]
+                                     "implicit_midpoint", "gauss_legendre4", "stormer_verlet",
+                                     "abm2", "abm3", "abm4", "abm5", "abm6", "trapezoid"]
 
 
 @pytest.mark.parametrize("name", list(EXPECTED_ORDER))
@@ -117,6 +118,24 @@ def test_implicit_methods_order_symmetry_and_update(tables, name):
     assert np.allclose(legendre(c), 0.0, atol=1e-14)
 
 
+def test_the_trapezoid_rule_is_thesis_4_9(tables):
+    """x1 = x0 + h/2 (f(x0) + f(x1)): a first stage at the step's start with a zero row of A (explicit,
+    evaluated once), a last stage at its end with the row b (stiffly accurate: x1 = x0 + Z_2, the
+    update d = (0, 1), since A is singular), symmetric, order 2 and not 3, and A-stable:
+    R(z) = (1 + z/2) / (1 - z/2) on the imaginary axis has modulus 1."""
+    t = tables["trapezoid"]
+    a, b, c, d = np.array(t["a"]), np.array(t["b"]), np.array(t["c"]), np.array(t["d"])
+    assert t["implicit"] and t["order"] == 2
+    assert list(c) == [0.0, 1.0] and list(a[0]) == [0.0, 0.0] and list(a[1]) == list(b) == [0.5, 0.5]
+    assert list(d) == [0.0, 1.0]
+    assert satisfied_order(a, b) == 2
+    assert np.allclose(a + a[::-1, ::-1], np.broadcast_to(b, a.shape), atol=1e-15)
+    for z in (-1e3, -1.0, -1e-3, 2j, 50j):
+        stability = 1 + z * b @ np.linalg.solve(np.eye(2) - z * a, np.ones(2))
+        assert stability == pytest.approx((1 + z / 2) / (1 - z / 2), rel=1e-14)
+        assert abs(stability) <= 1 + 1e-14
+
+
 def test_explicit_tableaux_say_so(tables):
     explicit = [name for name, t in tables.items() if "a" in t and not t["implicit"]]
     assert sorted(explicit) == sorted(EXPECTED_ORDER)
@@ -137,7 +156,7 @@ def test_thesis_misprints_would_fail():
     assert satisfied_order(a, b) < 5
 
 
-@pytest.mark.parametrize("name,steps", [("ab2", 2), ("ab3", 3), ("ab4", 4), ("ab5", 5), ("ab6", 6)])
+@pytest.mark.parametrize("name,steps", [(f"{kind}{k}", k) for kind in ("ab", "abm") for k in range(2, 7)])
 def test_adams_bashforth_exact_on_polynomials(tables, name, steps):
     ab = tables[name]
     beta = [Fraction(x).limit_denominator(2000) for x in ab["beta"]]
@@ -149,3 +168,20 @@ def test_adams_bashforth_exact_on_polynomials(tables, name, steps):
     assert ab["steps"] == steps
     # The start must match the order: a Runge-Kutta method of order >= steps - 1.
     assert EXPECTED_ORDER[ab["starter"]] >= steps - 1
+
+
+@pytest.mark.parametrize("steps", range(2, 7))
+def test_adams_moulton_correctors_are_exact_on_polynomials(tables, steps):
+    """The corrector of abm<k>: int_0^1 p(s) ds = m_0 p(1) + sum_j m_(j+1) p(-j), exact for degree < k
+    (order k), not for degree k; its predictor is ab<k>'s."""
+    abm = tables[f"abm{steps}"]
+    m = [Fraction(x).limit_denominator(2000) for x in abm["moulton"]]
+    assert all(abs(float(f) - x) < 1e-15 for f, x in zip(m, abm["moulton"]))
+    nodes = [1] + [-j for j in range(steps - 1)]
+    moments = [sum(mj * Fraction(node) ** (q - 1) for mj, node in zip(m, nodes)) for q in range(1, steps + 2)]
+    assert moments[:steps] == [Fraction(1, q) for q in range(1, steps + 1)]
+    assert moments[steps] != Fraction(1, steps + 1)
+    assert abm["beta"] == tables[f"ab{steps}"]["beta"]
+    # The start at the method's own order where one exists (nystrom5 at most): the PECE error constant is
+    # small, and a start one order lower would dominate it over a short run.
+    assert EXPECTED_ORDER[abm["starter"]] >= min(steps, 5)

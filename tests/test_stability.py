@@ -10,6 +10,7 @@ import numpy as np
 import pytest
 
 from harness.cli import main
+from harness.fmi.methods import IMPLICIT
 from harness.fmi.fmus import build_dir
 from harness.studies.stability import (DAMPING_RATIOS, FIXED_STEP, GROWTH_LIMIT, PERIODS, Case, Probe, growth,
                                        linearized_eigenvalues, method_tables, read_csv, simple_cases, theory_limit,
@@ -48,7 +49,7 @@ def test_measured_limits_agree_with_the_prediction_in_the_linear_cases(atlas):
     assert len(linear) == len(DAMPING_RATIOS) * len(FIXED_STEP) + len(MODAL_OBJECTS) * (len(FIXED_STEP) - 1)
     for x in linear:
         if math.isinf(x.theory_limit):  # A-stable: stable at any step the Newton iteration converges at
-            assert x.method in ("implicit_midpoint", "gauss_legendre4") and x.measured_limit >= 100, x
+            assert x.method in IMPLICIT and x.measured_limit >= 100, x
         elif x.method == "stormer_verlet" and x.damping > 2 * math.sqrt(9.81):
             # overdamped: the mode that grows first is the step's parasitic one (eigenvalue near -1),
             # which a release from rest barely excites; the worst-case prediction is then a lower bound
@@ -121,16 +122,16 @@ def test_real_axis_boundaries_are_the_contracts(method):
     assert boundary(method, -1) == pytest.approx(SPEC_REAL_AXIS[method], rel=0.01)
 
 
-@pytest.mark.parametrize("method", ["implicit_midpoint", "gauss_legendre4"])
+@pytest.mark.parametrize("method", IMPLICIT)
 def test_the_implicit_methods_are_a_stable_and_keep_the_oscillators_energy(method):
-    """R(z) of the Gauss methods: |R| <= 1 on the whole left half-plane (the scan stops at its cap, 10),
+    """R(z) of the Gauss methods and the trapezoid rule: |R| <= 1 on the whole left half-plane (the scan stops at its cap, 10),
     |R(iy)| = 1 on the imaginary axis (no damping added, none removed), and the Pade forms
     (1 + z/2) / (1 - z/2) and (1 + z/2 + z^2/12) / (1 - z/2 + z^2/12) at sample points."""
     table = method_tables()[method]
     assert boundary(method, -1) > 9.9 and boundary(method, 1j) > 9.9 and boundary(method, -1 + 1j) > 9.9
     for y in (0.1, 1.0, 5.0, 50.0):
         assert growth(table, 1j * y) == pytest.approx(1.0, abs=1e-12)
-    pade = {"implicit_midpoint": lambda z: (1 + z / 2) / (1 - z / 2),
+    pade = {"implicit_midpoint": lambda z: (1 + z / 2) / (1 - z / 2), "trapezoid": lambda z: (1 + z / 2) / (1 - z / 2),
             "gauss_legendre4": lambda z: (1 + z / 2 + z * z / 12) / (1 - z / 2 + z * z / 12)}[method]
     for z in (-0.3 + 2j, -4 + 0.5j, 1.5 + 1j):
         assert growth(table, z) == pytest.approx(abs(pade(z)), rel=1e-12)
@@ -181,3 +182,24 @@ def test_adams_bashforth_growth_is_the_largest_root():
     z = 0.3 + 0.4j
     roots = np.roots([1, -(1 + 1.5 * z), 0.5 * z])
     assert growth(method_tables()["ab2"], z) == pytest.approx(max(abs(roots)), rel=1e-12)
+
+
+@pytest.mark.parametrize("k", range(2, 7))
+def test_the_predictor_corrector_theory_is_the_recursion_run(k):
+    """abm<k>'s growth from its characteristic polynomial equals the growth per step of its PECE
+    recursion run on y' = lambda y (h = 1): predict with ab<k>, evaluate, correct, evaluate."""
+    table = method_tables()[f"abm{k}"]
+    beta, moulton = table["beta"], table["moulton"]
+    rng = np.random.default_rng(k)
+    for z in (-0.2, -0.9, -1.6, 0.4j, 1.1j, -0.6 + 0.7j, -1.2 + 0.3j):
+        f = list(z * rng.normal(size=k))  # f(k), f(k-1), ...: the history of z y
+        y, log_size, logs = 1.0 + 0j, 0.0, []
+        for n in range(4000):
+            predicted = y + sum(b * fj for b, fj in zip(beta, f))
+            y = y + moulton[0] * z * predicted + sum(m * fj for m, fj in zip(moulton[1:], f))
+            f = [z * y] + f[:-1]
+            scale = max(abs(y), *map(abs, f))  # kept near 1: the logarithm carries the size
+            y, f, log_size = y / scale, [fj / scale for fj in f], log_size + math.log(scale)
+            logs.append(log_size)
+        rate = math.exp((logs[-1] - logs[-1001]) / 1000)
+        assert rate == pytest.approx(growth(table, z), rel=2e-3), z

@@ -28,7 +28,13 @@ static void print_adams_bashforth(const AdamsBashforth *ab, int last)
     int j;
     printf("  \"%s\": {\"steps\": %d, \"starter\": \"%s\", \"beta\": [", ab->name, ab->steps, ab->starter->name);
     for (j = 0; j < ab->steps; j++) printf("%s%.17g", j ? ", " : "", ab->beta[j]);
-    printf("]}%s\n", last ? "" : ",");
+    printf("]");
+    if (ab->corrected) {
+        printf(", \"moulton\": [");
+        for (j = 0; j < ab->steps; j++) printf("%s%.17g", j ? ", " : "", ab->moulton[j]);
+        printf("]");
+    }
+    printf("}%s\n", last ? "" : ",");
 }
 
 int main(void)

@@ -50,16 +50,37 @@ const ButcherTableau TABLEAU_GAUSS_LEGENDRE4 = {
     "gauss_legendre4", 2, 4, {0.5 - SQRT3 / 6, 0.5 + SQRT3 / 6},
     {{0.25, 0.25 - SQRT3 / 6}, {0.25 + SQRT3 / 6, 0.25}}, {0.5, 0.5}, {0}, 1, {-SQRT3, SQRT3}};
 
+/* The trapezoid rule (thesis 4.9), x1 = x0 + h/2 (f(t0, x0) + f(t1, x1)), as the 2-stage Lobatto IIIA
+ * method: its first stage is explicit (f at the step's start, evaluated once) and its last row of A
+ * is b, so that x1 = x0 + Z_2 (A is singular: no b^T A^-1). */
+const ButcherTableau TABLEAU_TRAPEZOID = {
+    "trapezoid", 2, 2, {0.0, 1.0}, {{0.0, 0.0}, {0.5, 0.5}}, {0.5, 0.5}, {0}, 1, {0.0, 1.0}};
+
 const char STORMER_VERLET_NAME[] = "stormer_verlet";
 
-const AdamsBashforth AB2 = {"ab2", 2, {3.0 / 2, -1.0 / 2}, &TABLEAU_RK4};
-const AdamsBashforth AB3 = {"ab3", 3, {23.0 / 12, -16.0 / 12, 5.0 / 12}, &TABLEAU_RK4};
-const AdamsBashforth AB4 = {"ab4", 4, {55.0 / 24, -59.0 / 24, 37.0 / 24, -9.0 / 24}, &TABLEAU_RK4};
+const AdamsBashforth AB2 = {"ab2", 2, {3.0 / 2, -1.0 / 2}, &TABLEAU_RK4, 0, {0}};
+const AdamsBashforth AB3 = {"ab3", 3, {23.0 / 12, -16.0 / 12, 5.0 / 12}, &TABLEAU_RK4, 0, {0}};
+const AdamsBashforth AB4 = {"ab4", 4, {55.0 / 24, -59.0 / 24, 37.0 / 24, -9.0 / 24}, &TABLEAU_RK4, 0, {0}};
 const AdamsBashforth AB5 = {
-    "ab5", 5, {1901.0 / 720, -2774.0 / 720, 2616.0 / 720, -1274.0 / 720, 251.0 / 720}, &TABLEAU_RK4};
-const AdamsBashforth AB6 = {
-    "ab6", 6, {4277.0 / 1440, -7923.0 / 1440, 9982.0 / 1440, -7298.0 / 1440, 2877.0 / 1440, -475.0 / 1440},
-    &TABLEAU_NYSTROM5};
+    "ab5", 5, {1901.0 / 720, -2774.0 / 720, 2616.0 / 720, -1274.0 / 720, 251.0 / 720}, &TABLEAU_RK4, 0, {0}};
+#define AB6_BETA {4277.0 / 1440, -7923.0 / 1440, 9982.0 / 1440, -7298.0 / 1440, 2877.0 / 1440, -475.0 / 1440}
+const AdamsBashforth AB6 = {"ab6", 6, AB6_BETA, &TABLEAU_NYSTROM5, 0, {0}};
+
+/* Adams-Bashforth-Moulton, PECE (thesis 4.2, predictor-corrector): the k-step Adams-Bashforth
+ * predictor, f at the prediction, the (k-1)-step Adams-Moulton corrector of the same order k; the
+ * next step's f(k) is taken at the corrected point. Two evaluations per step. abm5 starts with
+ * nystrom5, not ab5's rk4: its error constant is 8 times smaller than ab5's, and an order-4 start
+ * would dominate it over a short run. */
+const AdamsBashforth ABM2 = {"abm2", 2, {3.0 / 2, -1.0 / 2}, &TABLEAU_RK4, 1, {1.0 / 2, 1.0 / 2}};
+const AdamsBashforth ABM3 = {"abm3", 3, {23.0 / 12, -16.0 / 12, 5.0 / 12}, &TABLEAU_RK4, 1,
+                             {5.0 / 12, 8.0 / 12, -1.0 / 12}};
+const AdamsBashforth ABM4 = {"abm4", 4, {55.0 / 24, -59.0 / 24, 37.0 / 24, -9.0 / 24}, &TABLEAU_RK4, 1,
+                             {9.0 / 24, 19.0 / 24, -5.0 / 24, 1.0 / 24}};
+const AdamsBashforth ABM5 = {
+    "abm5", 5, {1901.0 / 720, -2774.0 / 720, 2616.0 / 720, -1274.0 / 720, 251.0 / 720}, &TABLEAU_NYSTROM5, 1,
+    {251.0 / 720, 646.0 / 720, -264.0 / 720, 106.0 / 720, -19.0 / 720}};
+const AdamsBashforth ABM6 = {"abm6", 6, AB6_BETA, &TABLEAU_NYSTROM5, 1,
+                             {475.0 / 1440, 1427.0 / 1440, -798.0 / 1440, 482.0 / 1440, -173.0 / 1440, 27.0 / 1440}};
 
 #if N_STATES > 0
 
@@ -211,11 +232,27 @@ ENGINE_INLINE int64_t adams_bashforth_loop(RightHandSide *f, int mode, const Ada
         if (m->ab_count < ab->steps) {
             runge_kutta_step(&e, mode, ab->starter, t, hs, x, newest, NULL);
             f->evaluations += (uint64_t)(ab->starter->stages - 1);
-        } else {
+        } else if (!ab->corrected) {
             UNROLL for (q = 0; q < N_STATES; q++) {
                 double sum = ab->beta[0] * newest[q];
                 UNROLL for (j = 1; j < ab->steps; j++)
                     sum += ab->beta[j] * m->ab_history[(m->ab_head - j + AB_MAX_STEPS) % AB_MAX_STEPS][q];
+                x[q] += hs * sum;
+            }
+        } else { /* predict, evaluate, correct */
+            double predicted[STATE_SLOTS], f_predicted[STATE_SLOTS];
+            UNROLL for (q = 0; q < N_STATES; q++) {
+                double sum = ab->beta[0] * newest[q];
+                UNROLL for (j = 1; j < ab->steps; j++)
+                    sum += ab->beta[j] * m->ab_history[(m->ab_head - j + AB_MAX_STEPS) % AB_MAX_STEPS][q];
+                predicted[q] = x[q] + hs * sum;
+            }
+            evaluate(&e, mode, t + hs, predicted, f_predicted);
+            f->evaluations++;
+            UNROLL for (q = 0; q < N_STATES; q++) {
+                double sum = ab->moulton[0] * f_predicted[q] + ab->moulton[1] * newest[q];
+                UNROLL for (j = 1; j + 1 < ab->steps; j++)
+                    sum += ab->moulton[j + 1] * m->ab_history[(m->ab_head - j + AB_MAX_STEPS) % AB_MAX_STEPS][q];
                 x[q] += hs * sum;
             }
         }
@@ -267,11 +304,22 @@ static void lu_solve(const double *a, int n, const int *pivot, double *b)
     }
 }
 
+/* A stage whose row of A is zero (the trapezoid rule's first): f at the step's start, no unknown. */
+static int explicit_stage(const ButcherTableau *tab, int i)
+{
+    int j;
+    for (j = 0; j < tab->stages; j++)
+        if (tab->a[i][j] != 0.0) return 0;
+    return 1;
+}
+
 /* One step of an implicit (collocation) method, in place on x. Simplified Newton: the Jacobian at the
  * step's start, I - h (A (x) J) factored once, the stage increments Z starting from the previous
  * step's (which differ by O(h^2)), or from zero for a loop's first step; Z keeps the solution for the
- * next step. Returns 0 (x unchanged) when the Jacobian is not finite or, setting f->unconverged, when
- * the iteration does not converge. */
+ * next step (a guess extrapolated from f through the previous step's start was better at small steps
+ * and far off at large ones, where it kept the trapezoid rule from converging). An explicit first stage
+ * (the trapezoid rule's) is f at the step's start, evaluated once. Returns 0 (x unchanged) when the
+ * Jacobian is not finite or, setting f->unconverged, when the iteration does not converge. */
 static int implicit_step(RightHandSide *f, const Evaluator *e, int mode, const ButcherTableau *tab, double t,
                          double h, double *x, double (*Z)[STATE_SLOTS])
 {
@@ -280,6 +328,7 @@ static int implicit_step(RightHandSide *f, const Evaluator *e, int mode, const B
     double J[STATE_SLOTS * STATE_SLOTS], newton[DIM * DIM];
     double F[IMPLICIT_MAX_STAGES][STATE_SLOTS], r[DIM], y[STATE_SLOTS], u[INPUT_SLOTS];
     double previous = INFINITY;
+    const int explicit_first = explicit_stage(tab, 0);
     int pivot[DIM], i, j, p, q, iteration;
     if (mode == FORCES_VARY)
         for (i = 0; i < N_INPUTS; i++) u[i] = e->u0[i] + (t - e->t0) * e->du[i];
@@ -295,6 +344,10 @@ static int implicit_step(RightHandSide *f, const Evaluator *e, int mode, const B
                 for (q = 0; q < N_STATES; q++)
                     newton[(i * N_STATES + p) * dim + j * N_STATES + q] =
                         (i == j && p == q ? 1.0 : 0.0) - h * tab->a[i][j] * J[p * N_STATES + q];
+    if (explicit_first) {
+        evaluate(e, mode, t, x, F[0]);
+        f->evaluations++;
+    }
     if (!lu_factor(newton, dim, pivot)) {
         f->unconverged = 1;
         return 0;
@@ -302,10 +355,11 @@ static int implicit_step(RightHandSide *f, const Evaluator *e, int mode, const B
     for (iteration = 1; iteration <= NEWTON_MAX_ITERATIONS; iteration++) {
         double norm = 0.0;
         for (i = 0; i < s; i++) {
+            if (i == 0 && explicit_first) continue; /* its Z stays zero: F is known */
             for (p = 0; p < N_STATES; p++) y[p] = x[p] + Z[i][p];
             evaluate(e, mode, t + tab->c[i] * h, y, F[i]);
+            f->evaluations++;
         }
-        f->evaluations += (uint64_t)s;
         f->iterations++;
         for (i = 0; i < s; i++)
             for (p = 0; p < N_STATES; p++) {
@@ -416,6 +470,7 @@ const ButcherTableau *tableau_of(int solver)
     case SOLVER_NYSTROM5: return &TABLEAU_NYSTROM5;
     case SOLVER_IMPLICIT_MIDPOINT: return &TABLEAU_IMPLICIT_MIDPOINT;
     case SOLVER_GAUSS_LEGENDRE4: return &TABLEAU_GAUSS_LEGENDRE4;
+    case SOLVER_TRAPEZOID: return &TABLEAU_TRAPEZOID;
     default: return NULL;
     }
 }
@@ -428,6 +483,11 @@ const AdamsBashforth *adams_bashforth_of(int solver)
     case SOLVER_AB4: return &AB4;
     case SOLVER_AB5: return &AB5;
     case SOLVER_AB6: return &AB6;
+    case SOLVER_ABM2: return &ABM2;
+    case SOLVER_ABM3: return &ABM3;
+    case SOLVER_ABM4: return &ABM4;
+    case SOLVER_ABM5: return &ABM5;
+    case SOLVER_ABM6: return &ABM6;
     default: return NULL;
     }
 }
@@ -452,7 +512,8 @@ double evaluations_needed(int solver, int history, double substeps)
     starts = (double)(ab->steps - 1 - history);
     if (starts < 0.0) starts = 0.0;
     if (starts > substeps) starts = substeps;
-    return substeps + starts * (ab->starter->stages - 1);
+    /* a corrected step evaluates twice; a starting step as its Runge-Kutta method */
+    return substeps * (ab->corrected ? 2 : 1) + starts * (ab->starter->stages - 1 - ab->corrected);
 }
 
 /* One case per method, each with a constant tableau, so that each loop is compiled for its own
@@ -472,10 +533,16 @@ ENGINE_INLINE int64_t fixed_loop(RightHandSide *f, int mode, int solver, Integra
     case SOLVER_AB4: return adams_bashforth_loop(f, mode, &AB4, memory, x, t0, hs, first, n, check_each);
     case SOLVER_AB5: return adams_bashforth_loop(f, mode, &AB5, memory, x, t0, hs, first, n, check_each);
     case SOLVER_AB6: return adams_bashforth_loop(f, mode, &AB6, memory, x, t0, hs, first, n, check_each);
+    case SOLVER_ABM2: return adams_bashforth_loop(f, mode, &ABM2, memory, x, t0, hs, first, n, check_each);
+    case SOLVER_ABM3: return adams_bashforth_loop(f, mode, &ABM3, memory, x, t0, hs, first, n, check_each);
+    case SOLVER_ABM4: return adams_bashforth_loop(f, mode, &ABM4, memory, x, t0, hs, first, n, check_each);
+    case SOLVER_ABM5: return adams_bashforth_loop(f, mode, &ABM5, memory, x, t0, hs, first, n, check_each);
+    case SOLVER_ABM6: return adams_bashforth_loop(f, mode, &ABM6, memory, x, t0, hs, first, n, check_each);
     case SOLVER_IMPLICIT_MIDPOINT:
         return implicit_loop(f, mode, &TABLEAU_IMPLICIT_MIDPOINT, x, t0, hs, first, n, check_each);
     case SOLVER_GAUSS_LEGENDRE4:
         return implicit_loop(f, mode, &TABLEAU_GAUSS_LEGENDRE4, x, t0, hs, first, n, check_each);
+    case SOLVER_TRAPEZOID: return implicit_loop(f, mode, &TABLEAU_TRAPEZOID, x, t0, hs, first, n, check_each);
 #if SPLIT_ACCELERATIONS
     case SOLVER_STORMER_VERLET: return stormer_verlet_loop(f, mode, x, t0, hs, first, n, check_each);
 #endif

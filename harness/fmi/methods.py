@@ -36,6 +36,14 @@ METHODS = (
            symmetric=True, implicit=True),
     Method("stormer_verlet", 2, True, "Stormer-Verlet, symmetric, order 2 (objects with a constant mass matrix)",
            symmetric=True, needs_constant_mass=True),
+    # appended: the items before keep their values
+    Method("abm2", 2, True, "Adams-Bashforth-Moulton 2, predictor-corrector (PECE: ab2, trapezoid)"),
+    Method("abm3", 3, True, "Adams-Bashforth-Moulton 3, predictor-corrector (PECE)"),
+    Method("abm4", 4, True, "Adams-Bashforth-Moulton 4, predictor-corrector (PECE)"),
+    Method("abm5", 5, True, "Adams-Bashforth-Moulton 5, predictor-corrector (PECE, nystrom5 start)"),
+    Method("abm6", 6, True, "Adams-Bashforth-Moulton 6, predictor-corrector (PECE, nystrom5 start)"),
+    Method("trapezoid", 2, True, "implicit trapezoid rule (thesis 4.9), symmetric, A-stable, order 2 (Newton per step)",
+           symmetric=True, implicit=True),
 )
 SOLVERS = tuple(m.name for m in METHODS)
 FIXED_STEP = tuple(m.name for m in METHODS if m.fixed_step)

@@ -31,6 +31,7 @@ from harness.objects.object_file import FRAMEWORK_PARAMETERS, ObjectFileError, O
 
 STEP_RATIOS = [2.0 ** (3 - k) for k in range(9)]  # run steps: 8 h ... h / 32 of the object's default h
 RUN_STEPS = 128                                     # run length in default steps
+SLOW_RUN_FACTOR = 4                                 # the longer run of a method whose order the first cannot show
 ROUNDING_FLOOR = 1e-12                       # differences below this are rounding, not truncation
 
 
@@ -198,6 +199,20 @@ def observed_order(steps: list[float], errors: list[float], order: int, at_least
     return passed, f"{measured:.2f} at h = {steps[k]:.3g} ... {steps[last]:.3g}"
 
 
+def _order_check(instance: FmuInstance, spec: ObjectSpec, method, steps: list[float],
+                 duration: float) -> tuple[bool, str, list]:
+    runs = [_run(instance, spec, duration, solver=method.name, h=step) for step in steps]
+    differences = [float(np.max(np.abs(a[0] - b[0]))) for a, b in zip(runs, runs[1:])]
+    passed, detail = observed_order(steps[:-1], differences, method.order, at_least=False)
+    text = f"states {detail}"
+    if not spec.rheonomic:
+        drift = [abs(energy - start) / max(1.0, abs(start)) for _, energy, start in runs]
+        energy_passed, energy_detail = observed_order(steps, drift, method.order, at_least=True)
+        passed = passed and energy_passed
+        text += f"; energy error {energy_detail}"
+    return passed, f"{text}, over {duration:g} s", runs
+
+
 def method_orders(fmu: Path, spec: ObjectSpec) -> list[Proof]:
     proofs = []
     with FmuInstance(fmu) as instance:
@@ -209,17 +224,15 @@ def method_orders(fmu: Path, spec: ObjectSpec) -> list[Proof]:
         for method in METHODS:
             if not method.fixed_step or method.name not in accepted:
                 continue
-            runs = [_run(instance, spec, duration, solver=method.name, h=step) for step in steps]
-            differences = [float(np.max(np.abs(a[0] - b[0]))) for a, b in zip(runs, runs[1:])]
-            passed, detail = observed_order(steps[:-1], differences, method.order, at_least=False)
-            text = f"states {detail}"
-            if not spec.rheonomic:
-                drift = [abs(energy - start) / max(1.0, abs(start)) for _, energy, start in runs]
-                energy_passed, energy_detail = observed_order(steps, drift, method.order, at_least=True)
-                passed = passed and energy_passed
-                text += f"; energy error {energy_detail}"
-            proofs.append(Proof(f"order of {method.name} (theory {method.order})", passed,
-                                f"{text}, over {duration:g} s"))
+            passed, text, runs = _order_check(instance, spec, method, steps, duration)
+            if not passed:
+                # an object slow for its default step: a high order reaches rounding within a halving
+                # or two of a start still short of its asymptotic range; a longer run shows the order
+                longer_passed, longer_text, _ = _order_check(instance, spec, method, steps,
+                                                             SLOW_RUN_FACTOR * duration)
+                if longer_passed:
+                    passed, text = True, f"{longer_text} (over {duration:g} s: {text})"
+            proofs.append(Proof(f"order of {method.name} (theory {method.order})", passed, text))
             if method.name == "nystrom5":
                 finest = runs[-1][0]
         if finest is not None:

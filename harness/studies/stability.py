@@ -84,19 +84,31 @@ def largest_growth(table: dict, zs) -> float:
     return max(growth(table, z) for z in zs)
 
 
+def multistep_weights(table: dict, z) -> np.ndarray:
+    """a_j(z) of the recursion zeta^k = sum_j a_j zeta^(k-1-j) that an Adams method follows on
+    y' = lambda y, z = h lambda (z scalar or array: the weights along a last axis). Adams-Bashforth:
+    a_j = [j = 0] + z beta_j. PECE with the Adams-Moulton weights m (m_0 on the predicted point's f):
+    y(k+1) = y(k) + z (m_0 p + sum_j m_(j+1) y(k-j)) with p = y(k) + z sum_j beta_j y(k-j), so
+    a_j = [j = 0] (1 + z m_0) + z^2 m_0 beta_j + z m_(j+1)."""
+    z = np.asarray(z, dtype=complex)[..., None]
+    beta = np.asarray(table["beta"], dtype=float)
+    first = (np.arange(len(beta)) == 0).astype(float)
+    if "moulton" not in table:
+        return first + z * beta
+    m = np.asarray(table["moulton"], dtype=float)
+    corrector = np.zeros(len(beta))
+    corrector[:len(beta) - 1] = m[1:]
+    return first * (1 + z * m[0]) + z * z * m[0] * beta + z * corrector
+
+
 def growth(table: dict, z: complex) -> float:
     """|R(z)| for a Runge-Kutta method (explicit or implicit), the spectral radius of the k-step
-    recursion for Adams-Bashforth, Stormer-Verlet's growth on an underdamped oscillator with roots
+    recursion for Adams-Bashforth and Adams-Bashforth-Moulton (PECE), Stormer-Verlet's growth on an underdamped oscillator with roots
     z and conj(z) (`table`: one entry of method_tables())."""
     if table.get("partitioned"):
         return pair_growth(z, z.conjugate() if z.imag else z)
     if "beta" in table:
-        beta = table["beta"]
-        # zeta^k - zeta^(k-1) - z sum_j beta_j zeta^(k-1-j) = 0
-        coefficients = np.zeros(len(beta) + 1, dtype=complex)
-        coefficients[0], coefficients[1] = 1.0, -1.0
-        coefficients[1:] -= z * np.asarray(beta)
-        return float(np.max(np.abs(np.roots(coefficients))))
+        return float(np.max(np.abs(np.roots(np.concatenate([[1.0], -multistep_weights(table, z)])))))
     a, b = np.asarray(table["a"], dtype=float), np.asarray(table["b"], dtype=float)
     stages = len(b)
     return float(abs(1 + z * b @ np.linalg.solve(np.eye(stages) - z * a, np.ones(stages))))
@@ -319,11 +331,10 @@ def growth_on_grid(table: dict, z: np.ndarray) -> np.ndarray:
     if table.get("partitioned") or table.get("implicit"):  # few points need it: one at a time
         return np.vectorize(lambda value: growth(table, complex(value)))(z)
     if "beta" in table:
-        beta = np.asarray(table["beta"])
-        k = len(beta)
+        weights = multistep_weights(table, z)
+        k = weights.shape[-1]
         companion = np.zeros(z.shape + (k, k), dtype=complex)
-        companion[..., 0, :] = z[..., None] * beta  # zeta^k = (1 + z beta_0) zeta^(k-1) + z beta_1 zeta^(k-2) ...
-        companion[..., 0, 0] += 1.0
+        companion[..., 0, :] = weights
         if k > 1:
             companion[..., np.arange(1, k), np.arange(k - 1)] = 1.0
         return np.max(np.abs(np.linalg.eigvals(companion)), axis=-1)

@@ -46,7 +46,7 @@ PENDULUMS = ("SimplePendulum", "DoublePendulum", "SpringPendulum")
 # higher orders, the rounding floor. Euler never gets there on the DoublePendulum (it would need
 # about 1e9 evaluations).
 SUBSTEPS = {1: (4, 16, 64, 256, 1024, 4096), 2: (2, 4, 8, 16, 32, 64, 128, 256, 512, 1024),
-            3: (2, 4, 8, 16, 32, 64, 128, 256), 4: (1, 2, 4, 8, 16, 32, 64), 5: (1, 2, 4, 8, 16),
+            3: (2, 4, 8, 16, 32, 64, 128, 256), 4: (1, 2, 4, 8, 16, 32, 64), 5: (1, 2, 4, 8, 16, 32),
             6: (1, 2, 4, 8, 16)}
 RKF45_TOLERANCES = (1e-6, 1e-8, 1e-10, 1e-12, 1e-14)
 SCIPY_METHODS = ("RK45", "DOP853", "LSODA")
