@@ -44,6 +44,8 @@ int main(void)
     for (solver = 1; solver <= SOLVER_COUNT; solver++) {
         const ButcherTableau *t = tableau_of(solver);
         if (t) print_tableau(t, solver == SOLVER_COUNT);
+        else if (solver == SOLVER_TAYLOR)
+            printf("  \"%s\": {\"taylor\": true}%s\n", solver_name(solver), solver == SOLVER_COUNT ? "" : ",");
         else if (solver == SOLVER_STORMER_VERLET)
             printf("  \"%s\": {\"partitioned\": true, \"order\": 2}%s\n", solver_name(solver),
                    solver == SOLVER_COUNT ? "" : ",");

@@ -201,6 +201,15 @@ Instance *core_instantiate(const char *function, Interface type, const char *nam
         return NULL;
     }
     memcpy(inst->name, name, length);
+#if N_STATES > 0
+    inst->taylor_work = (double (*)[TAYLOR_SLOTS])allocate(TAYLOR_SERIES, sizeof *inst->taylor_work);
+    if (!inst->taylor_work) {
+        release(inst->name);
+        release(inst);
+        log_error(&reporter, "%s: out of memory", function);
+        return NULL;
+    }
+#endif
     inst->type = type;
     inst->emit = emit;
     inst->api_logger = api_logger;
@@ -215,6 +224,7 @@ Instance *core_instantiate(const char *function, Interface type, const char *nam
 void core_free(Instance *inst)
 {
     if (!inst) return;
+    if (inst->taylor_work) inst->release(inst->taylor_work);
     inst->release(inst->name);
     inst->release(inst);
 }
@@ -313,6 +323,14 @@ static int value_in_range(Instance *inst, const char *function, const VariableIn
                   "form a(t, q) - d v, and %s (allowed here: 1 to %d except %d; implicit_midpoint and gauss_legendre4 "
                   "are symmetric as well)", function, vr, SOLVER_STORMER_VERLET, SPLIT_REASON, SOLVER_COUNT,
                   SOLVER_STORMER_VERLET);
+        return 0;
+    }
+#endif
+#if N_STATES > 0 && !TAYLOR_AVAILABLE
+    if (v == &INTEGER_VARIABLES[INT_solver] && value == SOLVER_TAYLOR) {
+        log_error(inst, "%s: variable solver (value reference %u) = %d (taylor) needs Taylor recurrences for every "
+                  "function of the equations, and %s (allowed here: 1 to %d except %d)", function, vr, SOLVER_TAYLOR,
+                  TAYLOR_REASON, SOLVER_COUNT, SOLVER_TAYLOR);
         return 0;
     }
 #endif

@@ -43,6 +43,7 @@ typedef struct {
 
 #include "model_description.h"
 #include "physics.h"
+#include "taylor.h"
 
 /* Sizes that stay legal C for a model without states or inputs (the Spring). */
 #define STATE_SLOTS (N_STATES > 0 ? N_STATES : 1)
@@ -114,6 +115,7 @@ struct Instance {
     const char *const *state_names; /* the layer's names of the MS_ states, by bit position */
     void *(*allocate)(size_t count, size_t size);
     void (*release)(void *memory);
+    double (*taylor_work)[TAYLOR_SLOTS]; /* the Taylor method's work series (TAYLOR_SERIES of them) */
     int logging_on;
 };
 
@@ -232,6 +234,12 @@ INTERNAL void model_directional(const ModelConst *c, double t, const double *rea
                                 const double *seed_x, const double *seed_u, double *ddx, double *change);
 /* Advance the inputs over a step of H using their derivatives (and, for positions, velocities). */
 INTERNAL void model_advance_inputs(double *real, const double *du, double H);
+#if N_STATES > 0
+/* Taylor coefficients 1 ... order of the state (x[i][0] given) at t, u0 (NULL: no forces) and du the
+ * inputs and their rates there, w the work series; 0 where the mass matrix is not positive definite. */
+INTERNAL int model_taylor(const ModelConst *c, double t, const double *u0, const double *du, int order,
+                          double (*x)[TAYLOR_SLOTS], double (*w)[TAYLOR_SLOTS]);
+#endif
 
 /* Default for model_advance_inputs (instance.c): each input moves with its own first derivative. */
 INTERNAL void advance_inputs_linearly(double *real, const double *du, double H);

@@ -57,6 +57,7 @@ const ButcherTableau TABLEAU_TRAPEZOID = {
     "trapezoid", 2, 2, {0.0, 1.0}, {{0.0, 0.0}, {0.5, 0.5}}, {0.5, 0.5}, {0}, 1, {0.0, 1.0}};
 
 const char STORMER_VERLET_NAME[] = "stormer_verlet";
+const char TAYLOR_NAME[] = "taylor";
 
 const AdamsBashforth AB2 = {"ab2", 2, {3.0 / 2, -1.0 / 2}, &TABLEAU_RK4, 0, {0}};
 const AdamsBashforth AB3 = {"ab3", 3, {23.0 / 12, -16.0 / 12, 5.0 / 12}, &TABLEAU_RK4, 0, {0}};
@@ -497,15 +498,17 @@ const char *solver_name(int solver)
     const ButcherTableau *tab = tableau_of(solver);
     const AdamsBashforth *ab = adams_bashforth_of(solver);
     if (solver == SOLVER_STORMER_VERLET) return STORMER_VERLET_NAME;
+    if (solver == SOLVER_TAYLOR) return TAYLOR_NAME;
     return tab ? tab->name : ab ? ab->name : "unknown solver";
 }
 
-double evaluations_needed(int solver, int history, double substeps)
+double evaluations_needed(int solver, int history, double substeps, int taylor_order)
 {
     const ButcherTableau *tab = tableau_of(solver);
     const AdamsBashforth *ab = adams_bashforth_of(solver);
     double starts;
     if (solver == SOLVER_STORMER_VERLET) return substeps + ceil(substeps / CHECK_BLOCK); /* one per block start */
+    if (solver == SOLVER_TAYLOR) return substeps * taylor_order;
     if (tab && tab->implicit) return substeps * (tab->stages * NEWTON_MAX_ITERATIONS + 1 + N_STATES);
     if (tab || !ab) return substeps * (tab ? tab->stages : 1);
     /* substep i starts with a Runge-Kutta step while history + i + 1 < steps (adams_bashforth_loop) */
@@ -514,6 +517,90 @@ double evaluations_needed(int solver, int history, double substeps)
     if (starts > substeps) starts = substeps;
     /* a corrected step evaluates twice; a starting step as its Runge-Kutta method */
     return substeps * (ab->corrected ? 2 : 1) + starts * (ab->starter->stages - 1 - ab->corrected);
+}
+
+/* ---- The Taylor method (thesis 4.10-4.13): x(t + s) = sum_{k=0..p} x_k s^k, the coefficients x_k from
+ * the object's generated recurrences (model_taylor), summed by Horner's rule. A coefficient order costs
+ * about what one right-hand side does and is counted as one evaluation. */
+static int taylor_coefficients(RightHandSide *f, int mode, double t, const double *x,
+                               double (*series)[TAYLOR_SLOTS])
+{
+    double u[INPUT_SLOTS];
+    int i;
+    for (i = 0; i < N_STATES; i++) series[i][0] = x[i];
+    for (i = 0; i < N_INPUTS; i++) u[i] = f->u0[i] + (mode == FORCES_VARY ? (t - f->t0) * f->du[i] : 0.0);
+    f->evaluations += (uint64_t)f->taylor_order;
+    return model_taylor(f->model, t, mode == FORCES_NONE ? NULL : u, mode == FORCES_VARY ? f->du : NULL,
+                        f->taylor_order, series, f->taylor_work);
+}
+
+static void taylor_sum(double (*series)[TAYLOR_SLOTS], int order, double s, double *x)
+{
+    int i, k;
+    for (i = 0; i < N_STATES; i++) {
+        double sum = series[i][order];
+        for (k = order - 1; k >= 0; k--) sum = sum * s + series[i][k];
+        x[i] = sum;
+    }
+}
+
+static int64_t taylor_loop(RightHandSide *f, int mode, double *x, double t0, double hs, int64_t first, int64_t n,
+                           int check_each)
+{
+    double series[STATE_SLOTS][TAYLOR_SLOTS], saved[STATE_SLOTS];
+    int64_t i;
+    for (i = first; i < first + n; i++) {
+        const double t = t0 + (double)i * hs;
+        memcpy(saved, x, sizeof saved);
+        if (!taylor_coefficients(f, mode, t, x, series)) return i - first;
+        taylor_sum(series, f->taylor_order, hs, x);
+        if (check_each && rejected(f, t + hs, x, saved)) return i - first;
+    }
+    return n;
+}
+
+/* With tol > 0 the step comes from the last two coefficients (Jorba and Zou): the largest s with
+ * |x_j|_inf s^j <= tol (1 + |x|_inf) for j = p - 1 and p, times exp(-0.7 / (p - 1)); no step is
+ * rejected. Stops early (returning the time reached) when the work bound is reached, when the step
+ * underflows, or when a result is not acceptable. */
+double integrate_taylor(RightHandSide *f, IntegratorMemory *memory, double *x, double t0, double t_end,
+                              double tol, int check_each)
+{
+    const int mode = forces_mode(f), order = f->taylor_order;
+    const double smallest = 1e-14 * (fabs(t_end) > 1.0 ? fabs(t_end) : 1.0);
+    const double safety = exp(-0.7 / (order - 1));
+    double series[STATE_SLOTS][TAYLOR_SLOTS], y[STATE_SLOTS];
+    double t = t0;
+    int i;
+    while (t < t_end) {
+        const double remaining = t_end - t;
+        double size = 0.0, h = INFINITY, step;
+        int j;
+        if (f->evaluations + f->checks + (uint64_t)order > f->budget) {
+            f->out_of_budget = 1;
+            break;
+        }
+        if (!taylor_coefficients(f, mode, t, x, series)) break;
+        for (i = 0; i < N_STATES; i++) size = fmax(size, fabs(x[i]));
+        for (j = order - 1; j <= order; j++) {
+            double largest = 0.0;
+            for (i = 0; i < N_STATES; i++) largest = fmax(largest, fabs(series[i][j]));
+            if (largest > 0.0) h = fmin(h, pow(tol * (1.0 + size) / largest, 1.0 / j));
+        }
+        h *= safety;
+        if (!(h >= smallest)) break; /* underflowed, or the coefficients are not finite */
+        step = h >= remaining ? remaining : h;
+        taylor_sum(series, order, step, y);
+        if (!model_state_ok(f->model, y)) break;
+        if (check_each) {
+            f->checks++;
+            if (!f->acceptable(f->context, t + step, y)) break;
+        }
+        memcpy(x, y, sizeof y);
+        t = step == remaining ? t_end : t + step;
+        memory->n_steps++;
+    }
+    return t < t_end ? t : t_end;
 }
 
 /* One case per method, each with a constant tableau, so that each loop is compiled for its own
@@ -543,6 +630,7 @@ ENGINE_INLINE int64_t fixed_loop(RightHandSide *f, int mode, int solver, Integra
     case SOLVER_GAUSS_LEGENDRE4:
         return implicit_loop(f, mode, &TABLEAU_GAUSS_LEGENDRE4, x, t0, hs, first, n, check_each);
     case SOLVER_TRAPEZOID: return implicit_loop(f, mode, &TABLEAU_TRAPEZOID, x, t0, hs, first, n, check_each);
+    case SOLVER_TAYLOR: return taylor_loop(f, mode, x, t0, hs, first, n, check_each);
 #if SPLIT_ACCELERATIONS
     case SOLVER_STORMER_VERLET: return stormer_verlet_loop(f, mode, x, t0, hs, first, n, check_each);
 #endif
@@ -580,7 +668,10 @@ double integrate_adaptive(RightHandSide *f, IntegratorMemory *memory, double *x,
         const double step = last ? remaining : h;
         double norm = 0.0, factor;
         int accept;
-        if (f->evaluations + f->checks + (uint64_t)TABLEAU_RKF45.stages > f->budget) break; /* the work bound per call */
+        if (f->evaluations + f->checks + (uint64_t)TABLEAU_RKF45.stages > f->budget) { /* the work bound per call */
+            f->out_of_budget = 1;
+            break;
+        }
         if (!have_f0) {
             evaluate(&e, mode, t, x, f0);
             f->evaluations++;

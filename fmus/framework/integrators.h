@@ -51,7 +51,7 @@ extern INTERNAL const ButcherTableau TABLEAU_EULER, TABLEAU_MIDPOINT, TABLEAU_HE
 #define NEWTON_TOLERANCE 1e-15
 #define NEWTON_PLATEAU 1e-10
 #define IMPLICIT_MAX_STAGES 2
-extern INTERNAL const char STORMER_VERLET_NAME[];
+extern INTERNAL const char STORMER_VERLET_NAME[], TAYLOR_NAME[];
 
 /* Substeps between two checks of the state in a fixed-step pass: a failure costs at most this many
  * substeps redone, and the checks cost one evaluation per block. */
@@ -72,6 +72,9 @@ typedef struct {
     uint64_t budget; /* rkf45 stops before a step that would take evaluations plus checks past this */
     uint64_t jacobians, iterations; /* the implicit methods' Jacobians and Newton iterations */
     int unconverged; /* set when an implicit method stopped because Newton's iteration did not converge */
+    int out_of_budget; /* set when an adaptive method stopped at the budget */
+    int taylor_order;
+    double (*taylor_work)[TAYLOR_SLOTS];
     /* J (N_STATES x N_STATES, row-major, J[i][j] = df_i/dx_j) at (t, x) with inputs u (NULL: all zero). */
     void (*jacobian)(void *context, double t, const double *x, const double *u, double *J);
     /* Whether a state is good enough to continue from (finite, not singular, finite outputs);
@@ -95,6 +98,13 @@ INTERNAL int64_t integrate_fixed(RightHandSide *f, int solver, IntegratorMemory 
 INTERNAL double integrate_adaptive(RightHandSide *f, IntegratorMemory *memory, double *x, double t0, double t_end,
                           double h_initial, double tol, int check_each);
 
+/* The Taylor method of order f->taylor_order from t0 to t_end with the step chosen from its last two
+ * coefficients for tol (Jorba and Zou); no step is rejected. Returns the time reached: t_end on
+ * success, earlier at the work bound (f->out_of_budget), where the step underflows, or before a
+ * result that is not acceptable. */
+INTERNAL double integrate_taylor(RightHandSide *f, IntegratorMemory *memory, double *x, double t0, double t_end,
+                                 double tol, int check_each);
+
 /* The tableau or coefficient set of a solver (NULL where it is the other kind). */
 INTERNAL const ButcherTableau *tableau_of(int solver);
 INTERNAL const AdamsBashforth *adams_bashforth_of(int solver);
@@ -102,7 +112,8 @@ INTERNAL const char *solver_name(int solver);
 /* Right-hand-side evaluations a fixed-step solver makes in `substeps` steps: its stages per step,
  * or for Adams-Bashforth one per step plus its Runge-Kutta start where `history` (the points it
  * keeps) is too short; for the implicit methods the most their iterations can take, each Jacobian
- * counted as one evaluation (f at the step's start) and one per state (its columns). */
-INTERNAL double evaluations_needed(int solver, int history, double substeps);
+ * counted as one evaluation (f at the step's start) and one per state (its columns); for the Taylor
+ * method its order per step (one evaluation per coefficient). */
+INTERNAL double evaluations_needed(int solver, int history, double substeps, int taylor_order);
 
 #endif

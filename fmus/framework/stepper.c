@@ -164,6 +164,14 @@ static void jacobian_at(void *context, double t, const double *x, const double *
     }
 }
 
+/* The adaptive methods: rkf45, and taylor with tol > 0. */
+static double adaptive_pass(RightHandSide *f, int solver, IntegratorMemory *memory, double *x, double t, double t_end,
+                            double h, double tol, int check_each)
+{
+    if (solver == SOLVER_TAYLOR) return integrate_taylor(f, memory, x, t, t_end, tol, check_each);
+    return integrate_adaptive(f, memory, x, t, t_end, h, tol, check_each);
+}
+
 Status step_to(Instance *inst, const char *function, double t, double H)
 {
     SimState *s = &inst->s;
@@ -197,6 +205,9 @@ Status step_to(Instance *inst, const char *function, double t, double H)
     f.jacobians = 0;
     f.iterations = 0;
     f.unconverged = 0;
+    f.out_of_budget = 0;
+    f.taylor_order = s->integer[INT_taylor_order];
+    f.taylor_work = inst->taylor_work;
     f.acceptable = state_acceptable;
     f.jacobian = jacobian_at;
     f.context = inst;
@@ -213,13 +224,18 @@ Status step_to(Instance *inst, const char *function, double t, double H)
         }
     }
 
-    if (solver == SOLVER_RKF45) {
+    if (solver == SOLVER_RKF45 && !(s->real[VR_tol] > 0.0)) {
+        log_error(inst, "%s: rkf45 needs a tolerance: variable tol = 0 is out of its range (0, 1] for rkf45 (tol = 0 "
+                  "means a fixed step only for taylor)", function);
+        return STATUS_ERROR;
+    }
+    if (solver == SOLVER_RKF45 || (solver == SOLVER_TAYLOR && s->real[VR_tol] > 0.0)) {
         const double t_end = t + H;
         double x_start[STATE_SLOTS];
         IntegratorMemory memory_start = *memory;
         double reached;
         memcpy(x_start, x, sizeof x_start);
-        reached = integrate_adaptive(&f, memory, x, t, t_end, h, s->real[VR_tol], reporting);
+        reached = adaptive_pass(&f, solver, memory, x, t, t_end, h, s->real[VR_tol], reporting);
         f.checks++;
         if (reporting) {
             if (reached == t_end && evaluate_at(inst, reached, x, checked)) {
@@ -230,7 +246,7 @@ Status step_to(Instance *inst, const char *function, double t, double H)
             memcpy(x, x_start, sizeof x_start);
             *memory = memory_start;
             /* the checking pass runs on what is left of the budget */
-            reached = integrate_adaptive(&f, memory, x, t, t_end, h, s->real[VR_tol], 1);
+            reached = adaptive_pass(&f, solver, memory, x, t, t_end, h, s->real[VR_tol], 1);
         } else if (reached == t_end) {
             count_work(memory, &f);
             return finish_with(inst, t, H, checked, f.inputs_vary);
@@ -238,15 +254,15 @@ Status step_to(Instance *inst, const char *function, double t, double H)
         count_work(memory, &f);
         if (reached < t_end) {
             finish(inst, t, reached - t, reached);
-            if (f.evaluations + f.checks + (uint64_t)TABLEAU_RKF45.stages > f.budget)
-                log_discard(inst, "%s: rkf45 with tol = %g used its %.0f right-hand-side evaluations "
+            if (f.out_of_budget)
+                log_discard(inst, "%s: %s with tol = %g used its %.0f right-hand-side evaluations "
                             "allowed per call at t = %.17g; stopped at the last successful time %.17g (take shorter "
-                            "communication steps or a larger tol)", function, s->real[VR_tol], MAX_EVALUATIONS_PER_CALL,
-                            reached, reached);
+                            "communication steps or a larger tol)", function, method, s->real[VR_tol],
+                            MAX_EVALUATIONS_PER_CALL, reached, reached);
             else
-                log_discard(inst, "%s: rkf45 with tol = %g: the step size underflowed at t = %.17g (the "
+                log_discard(inst, "%s: %s with tol = %g: the step size underflowed at t = %.17g (the "
                             "state is non-finite, singular or too stiff there); stopped at the last successful "
-                            "time %.17g", function, s->real[VR_tol], reached, reached);
+                            "time %.17g", function, method, s->real[VR_tol], reached, reached);
             return STATUS_DISCARD;
         }
         return finish(inst, t, H, t_end);
@@ -261,8 +277,10 @@ Status step_to(Instance *inst, const char *function, double t, double H)
          * per block (or per substep when reporting), and the redo of one failing block with a check
          * after each of its substeps. */
         const double redone = fmin(planned, (double)CHECK_BLOCK);
-        const double work = evaluations_needed(solver, history, planned) +
-                            (reporting ? planned : ceil(planned / CHECK_BLOCK) + evaluations_needed(solver, 0, redone) + redone);
+        const int order = s->integer[INT_taylor_order];
+        const double work = evaluations_needed(solver, history, planned, order) +
+                            (reporting ? planned : ceil(planned / CHECK_BLOCK) + evaluations_needed(solver, 0, redone, order) +
+                                                   redone);
         if (work > MAX_EVALUATIONS_PER_CALL) {
             log_error(inst, "%s: communicationStepSize = %g with %s at h = %g needs %.0f right-hand-side "
                       "evaluations, its state checks included (allowed at most %.0f per call): raise h or shorten the "

@@ -17,6 +17,9 @@ class Method:
     needs_constant_mass: bool = False  # only for objects whose mass matrix is constant
 
 
+TAYLOR_ORDERS = (2, 30)    # the range of taylor_order (the generated physics.h sizes its series for the last)
+TAYLOR_DEFAULT_ORDER = 20  # its start value
+
 METHODS = (
     Method("euler", 1, True, "explicit Euler, order 1"),
     Method("midpoint", 2, True, "improved polygon (explicit midpoint), order 2"),
@@ -44,8 +47,15 @@ METHODS = (
     Method("abm6", 6, True, "Adams-Bashforth-Moulton 6, predictor-corrector (PECE, nystrom5 start)"),
     Method("trapezoid", 2, True, "implicit trapezoid rule (thesis 4.9), symmetric, A-stable, order 2 (Newton per step)",
            symmetric=True, implicit=True),
+    Method("taylor", TAYLOR_DEFAULT_ORDER, False,
+           f"Taylor method of order taylor_order ({TAYLOR_ORDERS[0]} to {TAYLOR_ORDERS[1]}), its coefficients by Taylor "
+           "arithmetic on the generated equations; fixed step h with tol = 0, else the step from its last two "
+           "coefficients (Jorba and Zou)"),
 )
 SOLVERS = tuple(m.name for m in METHODS)
+# The methods a plan (a method and its step, harness.studies.planner) may name: taylor's fixed step also
+# needs tol = 0, which plans do not carry.
+PLANNABLE = tuple(m.name for m in METHODS if m.name != "taylor")
 FIXED_STEP = tuple(m.name for m in METHODS if m.fixed_step)
 ORDER = {m.name: m.order for m in METHODS}
 SYMMETRIC = tuple(m.name for m in METHODS if m.symmetric)

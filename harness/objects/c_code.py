@@ -17,41 +17,12 @@ import re
 from dataclasses import dataclass, field
 
 import sympy as sp
-from sympy.printing.c import C99CodePrinter
 
+from harness.fmi.methods import TAYLOR_ORDERS
+from harness.objects.c_expression import c_expr
 from harness.objects.derivation import Derivation, total_derivative
 from harness.objects.object_file import FRAMEWORK_PARAMETERS, MAX_EVALUATIONS_PER_CALL
-
-
-class _Printer(C99CodePrinter):
-    """Small integer powers as products, as a person would write them."""
-
-    def _print_Pow(self, expr):
-        base, exponent = expr.args
-        if exponent.is_Integer and 2 <= int(exponent) <= 4:
-            b = self.parenthesize(base, 100)
-            return "(" + "*".join([b] * int(exponent)) + ")"
-        if exponent.is_Integer and -4 <= int(exponent) <= -1:
-            b = self.parenthesize(base, 100)
-            return "(1.0/(" + "*".join([b] * -int(exponent)) + "))"
-        if exponent == sp.Rational(1, 2):
-            return f"sqrt({self._print(base)})"
-        if exponent == sp.Rational(-1, 2):
-            return f"(1.0/sqrt({self._print(base)}))"
-        return super()._print_Pow(expr)
-
-
-    def _print_DiracDelta(self, expr):
-        # from differentiating Abs or sign twice: zero wherever the expression is defined (a kink's
-        # impulse is not a number the FMU can hand out)
-        return "0.0"
-
-
-_PRINTER = _Printer()
-
-
-def c_expr(expr) -> str:
-    return _PRINTER.doprint(sp.sympify(expr))
+from harness.objects.taylor_code import TaylorUnavailable, taylor_code
 
 
 @dataclass
@@ -188,6 +159,8 @@ def generate_c(derivation: Derivation) -> GeneratedC:
         body += force_lines
         body += [f"        b{j} += {c_expr(e)};" for j, e in enumerate(force_reduced) if e != 0]
         body.append("    }")
+    taylor = _taylor_function(spec, n, nf, diagonal, pivots, {key: prepared(derivation.M[key]) for key in upper},
+                              forcing, [prepared(e) for e in forces_q] if nf else [], state_locals)
     if diagonal:
         factor_lines, factor_constants = [f"    const double a{j} = b{j};" for j in range(n)], []
         constant_pivots = [(j, c_expr(m)) for j, m in enumerate(mass_c[(j, j)] for j in range(n))
@@ -270,6 +243,8 @@ def generate_c(derivation: Derivation) -> GeneratedC:
     explain = _with_locals(state_locals, explain)
 
     header = _HEADER.format(
+        taylor_available=1 if taylor.available else 0, taylor_reason=_c_string(taylor.reason),
+        taylor_series=max(1, taylor.series), taylor_max_order=TAYLOR_ORDERS[1],
         identifier=spec.identifier, n=n, nf=nf, has_linear=1 if has_linear else 0,
         split=0 if derivation.split_reason else 1, split_reason=_c_string(derivation.split_reason),
         max_evaluations=MAX_EVALUATIONS_PER_CALL,
@@ -283,10 +258,53 @@ def generate_c(derivation: Derivation) -> GeneratedC:
     source = _SOURCE.format(
         identifier=spec.identifier, file=spec.path.name, prepare="\n".join(prepare), state_ok="\n".join(ok_body),
         explain="\n".join(explain), outputs="\n".join(outputs_body), rates="\n".join(rates_body),
-        directional="\n".join(directional_body),
+        directional="\n".join(directional_body), taylor="\n".join(taylor.lines),
         closed_form=("    if (!c->linear) return 0;\n    linear_model_step(&c->lin, c->d, H, u, x);\n    return 1;"
                      if has_linear else "    (void)c, (void)H, (void)u, (void)x;\n    return 0;"))
     return GeneratedC(header, source)
+
+
+@dataclass
+class _TaylorFunction:
+    available: bool
+    reason: str
+    series: int
+    lines: list[str]
+
+
+def _taylor_function(spec, n: int, nf: int, diagonal: bool, pivots: list, mass: dict, forcing: list, forces: list,
+                     state_locals: list[str]) -> _TaylorFunction:
+    """The body of model_taylor, or one that refuses (with the reason) where a function of the
+    equations has no Taylor recurrence here."""
+    variables = {sp.Symbol(f"s_{c.name}", real=True): f"x[{j}]" for j, c in enumerate(spec.coordinates)}
+    variables.update({sp.Symbol(f"s_{c.velocity}", real=True): f"x[{n + j}]" for j, c in enumerate(spec.coordinates)})
+    variables.update({sp.Symbol(f"u[{k}]", real=True): f"us[{k}]" for k in range(nf)})
+    variables[sp.Symbol("t", real=True)] = "ts"
+    try:
+        code = taylor_code(n, mass, diagonal, forcing, forces, variables)
+    except TaylorUnavailable as reason:
+        return _TaylorFunction(False, str(reason), 0, ["    (void)c, (void)t, (void)u0, (void)du, (void)order, (void)x, (void)w;",
+                                                       "    return 0;"])
+    body = "\n".join(code.body)
+    lines = ["    const int forces = u0 != NULL;"]
+    if "ts[" in body or "ts," in body:
+        lines.append("    double ts[TAYLOR_SLOTS] = {0.0};")
+    if "us[" in body:
+        lines.append(f"    double us[{nf}][TAYLOR_SLOTS];")
+    if not diagonal:
+        lines.append(f"    double m0[{n * n}], r[{n}];")
+    lines += ["    int k;", "    (void)forces, (void)du, (void)t;"]
+    start = [f"    if (!({c_expr(pivot)} > 0.0)) return 0; /* M not positive definite here */" for pivot in pivots]
+    lines += _with_locals([f"{d[:-1]}[0];" for d in state_locals], start)  # coefficient 0: the state
+    if "ts[" in body or "ts," in body:
+        lines.append("    ts[0] = t;\n    ts[1] = 1.0;")
+    if "us[" in body:
+        lines += ["    if (forces) {", "        int i;", f"        for (i = 0; i < {nf}; i++) {{",
+                  "            memset(us[i], 0, sizeof us[i]);", "            us[i][0] = u0[i];",
+                  "            us[i][1] = du ? du[i] : 0.0;", "        }", "    }"]
+    lines += ["    for (k = 0; k < order && k < TAYLOR_MAX_ORDER; k++) { /* the second bound for the compiler */",
+              body, "    }", "    return 1;"]
+    return _TaylorFunction(True, "", code.series, lines)
 
 
 def _directional_lines(derivation: Derivation, prepared, targets: list[str], values: list, has_linear: bool) -> list[str]:
@@ -508,6 +526,11 @@ _HEADER = """/* {identifier}: generated from modelDescription/{file} by harness.
 #define SPLIT_ACCELERATIONS {split}
 #define SPLIT_REASON "{split_reason}"
 #define MAX_EVALUATIONS_PER_CALL {max_evaluations}.0 /* right-hand sides per fmi2DoStep */
+/* The Taylor method: its recurrences (model_taylor) need this many work series, or say why there are none. */
+#define TAYLOR_AVAILABLE {taylor_available}
+#define TAYLOR_REASON "{taylor_reason}"
+#define TAYLOR_SERIES {taylor_series}
+#define TAYLOR_MAX_ORDER {taylor_max_order}
 #include "linear_model.h"
 
 /* Parameters (p_), the damping d and parameter-only subexpressions (k), set by model_prepare. */
@@ -537,6 +560,7 @@ static inline void model_derivatives(const ModelConst *c, double t, const double
 _SOURCE = """/* {identifier}: generated from modelDescription/{file} by harness.objects. Do not edit: edit the object file. */
 #include <math.h>
 #include <stdio.h>
+#include <string.h>
 
 #include "framework.h"
 
@@ -580,6 +604,14 @@ void model_directional(const ModelConst *c, double t, const double *real, const 
 {{
     (void)seed_u;
 {directional}
+}}
+
+/* Taylor coefficients 1 ... order of the state from x[i][0] at t; u0 (NULL: no forces) and du the
+ * inputs and their rates at t; w holds TAYLOR_SERIES work series. 0 where M is not positive definite. */
+int model_taylor(const ModelConst *c, double t, const double *u0, const double *du, int order,
+                 double (*x)[TAYLOR_SLOTS], double (*w)[TAYLOR_SLOTS])
+{{
+{taylor}
 }}
 
 void model_advance_inputs(double *real, const double *du, double H) {{ advance_inputs_linearly(real, du, H); }}

@@ -13,7 +13,7 @@ import uuid
 from dataclasses import dataclass
 from xml.sax.saxutils import quoteattr
 
-from harness.fmi.methods import COUNTERS, METHODS, SOLVERS
+from harness.fmi.methods import COUNTERS, METHODS, SOLVERS, TAYLOR_DEFAULT_ORDER, TAYLOR_ORDERS
 from harness.objects.derivation import Derivation
 from harness.objects.object_file import FRAMEWORK_PARAMETERS, ObjectFileError
 
@@ -122,6 +122,10 @@ def variables(derivation: Derivation) -> list[Variable]:
                                            "in closed form per step"))
     result += [Variable(name, "output", "discrete", type="Integer", initial="calculated", description=description)
                for name, description in COUNTERS]
+    # appended after the counters, so that the older value references stay
+    result.append(Variable("taylor_order", "parameter", "tunable", type="Integer", start=TAYLOR_DEFAULT_ORDER,
+                           min=TAYLOR_ORDERS[0], max=TAYLOR_ORDERS[1],
+                           description="order of the Taylor method (solver = taylor)"))
     return result
 
 
@@ -198,7 +202,7 @@ def common_attributes(v: Variable, reference: int) -> str:
 
 
 def range_attributes(v: Variable) -> str:
-    """start, min and max of a Real (Float64) variable, where it has them."""
+    """start, min and max of a variable, where it has them."""
     return "".join(f' {key}="{_number(value)}"' for key, value in (("start", v.start), ("min", v.min), ("max", v.max))
                    if value is not None)
 
@@ -247,7 +251,7 @@ def _document(derivation: Derivation, variable_list: list[Variable], units, guid
         if v.type == "Enumeration":
             typed = f'<Enumeration declaredType="{v.declared_type}" start="{v.start}"/>'
         elif v.type == "Integer":
-            typed = "<Integer/>"
+            typed = f"<Integer{range_attributes(v)}/>"
         else:
             typed = "<Real"
             if v.unit:

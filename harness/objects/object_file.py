@@ -31,10 +31,11 @@ FRAMEWORK_PARAMETERS = {
     "h": dict(start=0.008, unit="s", min=1e-9,
               description=f"internal step (initial step for rkf45); one fmi2DoStep evaluates the right-hand side "
                           f"at most {MAX_EVALUATIONS_PER_CALL:.0e} times".replace("e+0", "e")),
-    "tol": dict(start=1e-6, unit="1", min=1e-14, max=1.0,
-                description="rkf45 tolerance: |err_i| <= tol (1 + |y_i|), RMS norm"),
+    "tol": dict(start=1e-6, unit="1", min=0.0, max=1.0,
+                description="tolerance: rkf45 keeps |err_i| <= tol (1 + |y_i|), RMS norm, and needs tol > 0; taylor "
+                            "keeps its last two terms below tol (1 + |y|_inf), or takes the fixed step h at tol = 0"),
 }
-RESERVED = {"solver", "model", *COUNTER_NAMES, "E_kin", "E_pot", "E", "t", "time"}
+RESERVED = {"solver", "model", "taylor_order", *COUNTER_NAMES, "E_kin", "E_pot", "E", "t", "time"}
 FUNCTIONS = {name: getattr(sp, name) for name in (
     "sin", "cos", "tan", "asin", "acos", "atan", "atan2", "sinh", "cosh", "tanh", "exp", "log", "sqrt", "Abs")}
 FUNCTIONS["pi"] = sp.pi

@@ -16,7 +16,7 @@ from harness.cosim.master import MasterOptions, run_system
 from harness.cosim.structure import System
 from harness.errors import HarnessError
 from harness.fmi.fmu_instance import accepted_methods
-from harness.fmi.methods import ORDER
+from harness.fmi.methods import ORDER, PLANNABLE
 from harness.studies.coupling import derived_reference
 from harness.studies.monolithic import MonolithicScene
 from harness.studies.plans import DEFAULT, SAFETY, ObjectPlan, largest_distance, step_doubling
@@ -60,7 +60,7 @@ def plan_coupled(system: System, tolerance: float, duration: float, frame: float
     # instability of the motion: stability is judged on the frequencies and on the damping there is.
     eigenvalues = [complex(min(lam.real, 0.0), lam.imag) for lam in scene.eigenvalues()]
     fmus = {str(system.component(name).fmu) for name in objects}
-    methods = [m for m in ORDER if all(m in accepted_methods(fmu) for fmu in fmus)]  # one method for all objects
+    methods = [m for m in PLANNABLE if all(m in accepted_methods(fmu) for fmu in fmus)]  # one method for all objects
 
     def errors_of(positions: np.ndarray) -> dict[str, float]:
         return {name: largest_distance(positions[:, [k for k, o in enumerate(owner) if o == name]],

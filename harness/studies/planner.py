@@ -35,7 +35,7 @@ import numpy as np
 from harness.cosim.structure import Component, System
 from harness.errors import HarnessError
 from harness.fmi.fmu_instance import accepted_methods, float_start_values, read_description
-from harness.fmi.methods import ORDER
+from harness.fmi.methods import ORDER, PLANNABLE
 from harness.objects.proof import object_file_in
 from harness.objects.thesis.equations import OUTER_MASS, Pendulum
 from harness.objects.thesis.reference import tight_reference
@@ -151,7 +151,7 @@ def _plausible_plan(component: Component, kind: str, runner: ObjectRunner, twin:
         return None
     limit = weight_n * pixel
     found = []
-    for method in (m for m in accepted_methods(str(component.fmu)) if m != "rkf45"):
+    for method in (m for m in accepted_methods(str(component.fmu)) if m != "rkf45" and m in PLANNABLE):
         for k in SUBSTEPS:
             h = frame / k
             if not stable(method, h):
@@ -227,7 +227,7 @@ def _pointwise_plan(component: Component, kind: str, runner: ObjectRunner, frame
         linear, _ = runner.run({"model": "linear", "h": frame})
         candidates.append(Candidate("linear", "closed form", frame, largest_distance(linear, reference),
                                     len(runner.grid) - 1, "closed form against the reference"))
-    for method in accepted_methods(str(component.fmu)):  # in ORDER's order
+    for method in (m for m in accepted_methods(str(component.fmu)) if m in PLANNABLE):  # in ORDER's order
         for k in SUBSTEPS:
             h = frame / k
             if not stable(method, h):

@@ -1,0 +1,172 @@
+"""The Taylor method (solver = taylor): its order at several values of taylor_order on the exact
+pendulum, exactness where the motion is a polynomial, agreement with an independent integrator on
+every object (mass matrices, forces, driven pivots), the step chosen from its coefficients for tol,
+its counters, bad settings, and the FMU state."""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from scipy.integrate import solve_ivp
+
+from harness.errors import HarnessError
+from harness.fmi.methods import TAYLOR_ORDERS
+from harness.objects.build import derive_fmu
+from harness.objects.proof import object_file_in
+from harness.objects.registry import object_names
+from harness.objects.thesis.reference import exact_simple_pendulum, slope
+
+PHI0 = 0.5
+
+
+def pendulum_error(fmu, t: float) -> float:
+    phi, omega = fmu.get("phi", "omega")
+    phi_exact, omega_exact = exact_simple_pendulum(PHI0, t)
+    return max(abs(phi - phi_exact), abs(omega - omega_exact) / np.sqrt(9.81))
+
+
+@pytest.mark.parametrize("order,substeps", [(2, [100, 200, 400]), (3, [40, 80, 160]), (4, [20, 40, 80]),
+                                            (6, [10, 20, 40]), (8, [16, 20, 32, 40])])
+def test_the_order_is_taylor_order(open_fmu, order, substeps):
+    """Fixed step (tol = 0) over 2 s, steps that divide it: the global error falls as h^order against
+    the elliptic solution. (Above order 8 the error reaches rounding before its slope settles: order
+    10 measures 11.0 between h = 2/16 and 2/32 s and is at 1e-15 by 2/40.)"""
+    steps = [2.0 / n for n in substeps]
+    errors = []
+    for h in steps:
+        fmu = open_fmu("SimplePendulum")
+        fmu.initialize(solver="taylor", taylor_order=order, tol=0.0, h=h, phi=PHI0)
+        assert fmu.do_step(0.0, 2.0) == 0
+        errors.append(pendulum_error(fmu, 2.0))
+    assert min(errors) > 1e-13, errors  # above rounding: the slope is truncation's
+    assert abs(slope(steps, errors) - order) < 0.3, errors
+
+
+def test_a_high_order_is_exact_to_rounding_at_large_steps(open_fmu):
+    """Order 30 at h = 0.25 s (a twelfth of the period): 10 s within 1e-13 of the elliptic solution."""
+    fmu = open_fmu("SimplePendulum")
+    fmu.initialize(solver="taylor", taylor_order=30, tol=0.0, h=0.25, phi=PHI0)
+    assert fmu.do_step(0.0, 10.0) == 0
+    assert pendulum_error(fmu, 10.0) < 1e-13
+    assert fmu.get("n_steps", "n_rhs") == [40, 40 * 30]
+
+
+FREE_FALL = """
+identifier = "Ball"
+description = "a point mass in a vertical plane under gravity, pushed by a force"
+
+[parameters]
+g = { start = 9.81, unit = "m/s2" }
+m = { start = 2.0, unit = "kg", min = 0.1 }
+
+[coordinates]
+x = { start = 0.0, unit = "m", velocity = "x_dot", velocity_start = 3.0 }
+y = { start = 10.0, unit = "m", velocity = "y_dot", velocity_start = 4.0 }
+
+[energy]
+T = "m/2*speed2(ball)"
+U = "m*g*y"
+
+[points]
+ball = { x = "x", y = "y" }
+
+[forces]
+F = { point = "ball" }
+"""
+
+
+@pytest.fixture(scope="module")
+def ball(tmp_path_factory):
+    folder = tmp_path_factory.mktemp("ball")
+    (folder / "Ball.toml").write_text(FREE_FALL)
+    return derive_fmu(folder / "Ball.toml", folder / "out").path
+
+
+def test_polynomial_motion_is_exact_per_step(ball):
+    """Free fall is a parabola and, under a force growing linearly in time (its derivative set), a
+    cubic: orders 2 and 3 give them exactly with one step per communication step of 1 s."""
+    from harness.fmi.fmu_instance import FmuInstance
+    with FmuInstance(ball) as fmu:
+        fmu.initialize(solver="taylor", taylor_order=2, tol=0.0, h=1.0)
+        for k in range(5):
+            assert fmu.do_step(float(k), 1.0) == 0
+        x, y, vx, vy = fmu.get("x", "y", "x_dot", "y_dot")
+        t = 5.0
+        assert x == pytest.approx(3.0 * t, abs=1e-13) and vx == pytest.approx(3.0, abs=1e-14)
+        assert y == pytest.approx(10.0 + 4.0 * t - 9.81 / 2 * t * t, abs=1e-12)
+        assert vy == pytest.approx(4.0 - 9.81 * t, abs=1e-13)
+        fmu.reset()
+        fmu.initialize(solver="taylor", taylor_order=3, tol=0.0, h=1.0)
+        for k in range(3):  # F_x = 2 t: x = 3 t + t^3 / (3 m)
+            fmu.set(F_x=2.0 * k)
+            fmu.set_input_derivatives(F_x=2.0)
+            assert fmu.do_step(float(k), 1.0) == 0
+        assert fmu.get("x")[0] == pytest.approx(3.0 * 3 + 27.0 / 6.0, abs=1e-13)
+
+
+@pytest.mark.parametrize("name", object_names())
+def test_every_object_agrees_with_an_independent_integrator(open_fmu, fmu_paths, name):
+    """taylor (order 20, tol 1e-13) against rkf45 at tol 1e-13 (the generated right-hand side, not
+    the recurrences) over 1 s with a force varying in time on its first input: within 1e-8 in every
+    state."""
+    spec = object_file_in(fmu_paths[name])
+    names = [c.name for c in spec.coordinates] + [c.velocity for c in spec.coordinates]
+    inputs = [name for force in spec.forces for name in force.inputs.values()]
+    results = []
+    for settings in ({"solver": "taylor", "taylor_order": 20, "tol": 1e-13}, {"solver": "rkf45", "tol": 1e-13}):
+        fmu = open_fmu(name)
+        fmu.initialize(**settings)
+        t = 0.0
+        for _ in range(10):
+            if inputs:
+                fmu.set(**{inputs[0]: 0.5 * np.sin(3 * t)})
+                fmu.set_input_derivatives(**{inputs[0]: 1.5 * np.cos(3 * t)})
+            assert fmu.do_step(t, 0.1) == 0, fmu.last_message()
+            t += 0.1
+        results.append(np.array(fmu.get(*names)))
+    assert np.max(np.abs(results[0] - results[1]) / (1 + np.abs(results[1]))) < 1e-8, (names, results)
+
+
+def test_the_step_follows_tol(open_fmu):
+    """With tol > 0 the error over 10 s stays within 100 tol of the elliptic solution and fewer,
+    longer steps come with a looser tol; every step costs its order in evaluations."""
+    steps = {}
+    for tol in (1e-8, 1e-11, 1e-14):
+        fmu = open_fmu("SimplePendulum")
+        fmu.initialize(solver="taylor", taylor_order=16, tol=tol, phi=PHI0)
+        assert fmu.do_step(0.0, 10.0) == 0
+        assert pendulum_error(fmu, 10.0) < max(100 * tol, 1e-13)
+        n_steps, n_rhs = fmu.get("n_steps", "n_rhs")
+        assert n_rhs == 16 * n_steps
+        steps[tol] = n_steps
+    assert steps[1e-8] < steps[1e-11] < steps[1e-14]
+
+
+@pytest.mark.parametrize("order", [1, TAYLOR_ORDERS[1] + 1])
+def test_taylor_order_out_of_range_is_refused(open_fmu, order):
+    fmu = open_fmu("SimplePendulum")
+    with pytest.raises(HarnessError) as error:
+        fmu.initialize(solver="taylor", taylor_order=order)
+    message = str(error.value)
+    assert "taylor_order" in message and f"= {order}" in message
+    assert f"[{TAYLOR_ORDERS[0]}, {TAYLOR_ORDERS[1]}]" in message
+
+
+def test_rkf45_refuses_tol_zero(open_fmu):
+    fmu = open_fmu("SimplePendulum")
+    fmu.initialize(solver="rkf45", tol=0.0)
+    assert fmu.do_step(0.0, 0.1) == 3
+    assert "rkf45 needs a tolerance: variable tol = 0" in fmu.last_message()
+
+
+@pytest.mark.parametrize("tol", [0.0, 1e-10])
+def test_state_round_trip(open_fmu, tol):
+    fmu = open_fmu("DoublePendulum")
+    fmu.initialize(solver="taylor", tol=tol, h=0.02, phi1=1.0)
+    assert fmu.do_step(0.0, 0.5) == 0
+    state = fmu.get_state()
+    assert fmu.do_step(0.5, 0.5) == 0
+    straight = fmu.get("phi1", "phi2", "omega1", "omega2", "n_steps", "n_rhs")
+    fmu.set_state(state)
+    assert fmu.do_step(0.5, 0.5) == 0
+    assert fmu.get("phi1", "phi2", "omega1", "omega2", "n_steps", "n_rhs") == straight
+    fmu.free_state(state)
