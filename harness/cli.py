@@ -270,13 +270,13 @@ def command_chart(args: argparse.Namespace) -> int:
     elif args.kind == "stability":
         from harness.studies.charts import stability_charts
         from harness.fmi.fmus import build_dir
-        from harness.studies.stability import atlas, cases, method_tables, sharp_deviations, write_csv
+        from harness.studies.stability import atlas, atlas_tables, cases, sharp_deviations, write_csv
         fmu_dir = build_dir() / "fmus"
         limits = atlas(fmu_dir, full=args.full, scheduler=args.scheduler, workers=args.workers, quick=args.quick,
                        objects=objects)
         write_csv(limits, out / "stability.csv")
         written = [out / "stability.csv", *stability_charts(limits, cases(fmu_dir, args.full, args.quick, objects),
-                                                            method_tables(), out)]
+                                                            atlas_tables(), out)]
         worst, deviation = max(sharp_deviations(limits, cases(fmu_dir, args.full, args.quick, objects)),
                                key=lambda pair: abs(pair[1]))
         print(f"{len(limits)} limits measured; largest deviation from a sharp prediction (linear cases): "

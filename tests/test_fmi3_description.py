@@ -55,8 +55,9 @@ def test_the_same_variables_as_fmi2(descriptions, fmu_paths, name):
         assert (new.start is None) == (old.start is None), variable_name
         if old.start is not None and old.type == "Real":
             assert float(new.start) == float(old.start), variable_name
-        # the Integer outputs (the counters) count, the Integer parameter (taylor_order) is signed
-        integer = "UInt64" if old.causality == "output" else "Int32"
+        # the Integer outputs (the counters) count, the Integer parameter (taylor_order) is an Int64 as the
+        # enumerations are
+        integer = "UInt64" if old.causality == "output" else "Int64"
         expected = {"Real": "Float64", "Integer": integer, "Enumeration": "Enumeration"}[old.type]
         assert new.type == expected, variable_name
 

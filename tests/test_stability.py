@@ -12,7 +12,7 @@ import pytest
 from harness.cli import main
 from harness.fmi.methods import IMPLICIT
 from harness.fmi.fmus import build_dir
-from harness.studies.stability import (DAMPING_RATIOS, FIXED_STEP, GROWTH_LIMIT, PERIODS, Case, Probe, growth,
+from harness.studies.stability import (ATLAS_METHODS, DAMPING_RATIOS, GROWTH_LIMIT, PERIODS, Case, Probe, growth,
                                        linearized_eigenvalues, method_tables, read_csv, simple_cases, theory_limit,
                                        verlet_matrix)
 
@@ -40,13 +40,13 @@ def test_the_files_and_the_columns(atlas):
     # Every object with a stable, regular rest state; not the spherical pendulum (its mass matrix is
     # singular at rest) nor Kapitza's (driven).
     for name in MODAL_OBJECTS:  # stormer_verlet only where the mass matrix is constant
-        assert {x.method for x in limits if x.object == name} == set(FIXED_STEP) - {"stormer_verlet"}
+        assert {x.method for x in limits if x.object == name} == set(ATLAS_METHODS) - {"stormer_verlet"}
     assert not {x.object for x in limits} & {"SphericalPendulum", "KapitzaPendulum"}
 
 
 def test_measured_limits_agree_with_the_prediction_in_the_linear_cases(atlas):
     linear = [x for x in atlas[1] if x.release < 1]
-    assert len(linear) == len(DAMPING_RATIOS) * len(FIXED_STEP) + len(MODAL_OBJECTS) * (len(FIXED_STEP) - 1)
+    assert len(linear) == len(DAMPING_RATIOS) * len(ATLAS_METHODS) + len(MODAL_OBJECTS) * (len(ATLAS_METHODS) - 1)
     for x in linear:
         if math.isinf(x.theory_limit):  # A-stable: stable at any step the Newton iteration converges at
             assert x.method in IMPLICIT and x.measured_limit >= 100, x
@@ -60,7 +60,7 @@ def test_measured_limits_agree_with_the_prediction_in_the_linear_cases(atlas):
 
 def test_nonlinear_limits_are_measured_without_a_prediction(atlas):
     nonlinear = [x for x in atlas[1] if x.release == 3.0]
-    assert len(nonlinear) == len(FIXED_STEP)
+    assert len(nonlinear) == len(ATLAS_METHODS)
     assert all(math.isnan(x.theory_limit) and x.measured_limit > 0 for x in nonlinear)
 
 

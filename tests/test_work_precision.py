@@ -35,18 +35,18 @@ def test_the_files_and_the_columns(sweep):
     out, points = sweep
     with open(out / "work-precision.csv") as handle:
         assert next(csv.reader(handle)) == ["object", "method", "h", "tol", "error", "rhs_evals", "seconds",
-                                         "reference_error", "jacobian_columns"]
+                                         "reference_error", "jacobian_columns", "order"]
     for suffix in ("png", "svg"):
         assert (out / f"work-precision.{suffix}").stat().st_size > 10_000
     for name in PENDULUMS:
-        for method in [*FIXED_STEP, "rkf45", "scipy-RK45", "scipy-DOP853", "scipy-LSODA", "fmpy-CVode"]:
+        for method in [*FIXED_STEP, "rkf45", "taylor", "scipy-RK45", "scipy-DOP853", "scipy-LSODA", "fmpy-CVode"]:
             mine = [p for p in points if p.object == name and p.method == method]
             if method == "stormer_verlet" and name != "SimplePendulum":  # its mass matrix varies
                 assert not mine
                 continue
             assert len(mine) >= 4, (name, method)
             assert all(p.rhs_evals > 0 and p.seconds > 0 and p.error > 0 for p in mine)
-            assert all(math.isfinite(p.h) == (method in FIXED_STEP) for p in mine)
+            assert all(math.isfinite(p.h) == (method in FIXED_STEP or method == "taylor") for p in mine)
             assert all((p.jacobian_columns > 0) == (method in IMPLICIT) for p in mine)
 
 
@@ -94,6 +94,23 @@ def assert_tolerances_buy_accuracy(points: list[Point], name: str) -> None:
 @pytest.mark.parametrize("name", PENDULUMS)
 def test_tighter_tolerances_buy_accuracy(sweep, name):
     assert_tolerances_buy_accuracy(sweep[1], name)
+    assert_taylor_orders_buy_accuracy(sweep[1], name)
+
+
+def assert_taylor_orders_buy_accuracy(points: list[Point], name: str) -> None:
+    """taylor at h = 0.01 s: 1000 steps of p (p + 1) / 2 evaluations each over the 10 s, and until its error
+    reaches the reference's, each order is more accurate than the one below, and order 2p at least 2^p
+    times more accurate than order p (an error of order (h / R)^p with h at most half the radius of
+    convergence R of the motion's series; the chaotic double pendulum measures about 4 per order)."""
+    mine = sorted((p for p in points if p.object == name and p.method == "taylor"), key=lambda p: p.order)
+    assert [p.rhs_evals for p in mine] == [1000 * p.order * (p.order + 1) // 2 for p in mine]
+    floor = 100 * max(p.reference_error for p in mine)
+    resolved = [p for p in mine if p.error > floor]
+    assert all(high.error < low.error for low, high in zip(resolved, resolved[1:])), [p.error for p in mine]
+    by_order = {p.order: p.error for p in resolved}
+    for low in by_order:  # in the asymptotic range: the chaotic double pendulum's order 2 is not
+        if 2 * low in by_order and by_order[low] < ASYMPTOTIC[1]:
+            assert by_order[2 * low] * 2 ** low <= by_order[low], (low, by_order)
 
 
 def test_the_pareto_front(sweep):

@@ -37,7 +37,7 @@ def test_every_method_and_peer_has_points(sweep):
     out, points = sweep
     assert (out / "work-precision.png").stat().st_size > 10_000
     for name in OBJECTS:
-        for method in [*FIXED_STEP, "rkf45", "scipy-RK45", "scipy-DOP853", "scipy-LSODA", "fmpy-CVode"]:
+        for method in [*FIXED_STEP, "rkf45", "taylor", "scipy-RK45", "scipy-DOP853", "scipy-LSODA", "fmpy-CVode"]:
             mine = [p for p in points if p.object == name and p.method == method]
             if method == "stormer_verlet":  # none of these objects has a constant mass matrix
                 assert not mine

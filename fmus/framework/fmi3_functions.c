@@ -343,8 +343,8 @@ fmi3Status fmi3SetFloat64(fmi3Instance instance, const fmi3ValueReference vr[], 
 
 /* ---------------------------------------------------------------- Int64 and UInt64 */
 
-/* The enumerations are parameters accessed as Int64, the counters outputs accessed as UInt64: each
- * variable through the function of its own type. */
+/* The enumerations and taylor_order are parameters accessed as Int64, the counters outputs accessed as
+ * UInt64: each variable through the function of its own type. */
 static int integer_type_matches(Instance *inst, const char *function, const fmi3ValueReference vr[], size_t n,
                                 int counters)
 {
@@ -353,7 +353,7 @@ static int integer_type_matches(Instance *inst, const char *function, const fmi3
         const VariableInfo *v = vr[i] >= N_REAL ? core_variable(vr[i]) : NULL; /* the core names unknown ones */
         if (v && (v->causality == CAUSALITY_OUTPUT) != counters) {
             log_error(inst, "%s: variable %s (value reference %u) is %s: use %s", function, v->name, vr[i],
-                      counters ? "an Enumeration" : "a UInt64 counter",
+                      counters ? "an Int64 parameter" : "a UInt64 counter",
                       counters ? "fmi3GetInt64 or fmi3SetInt64" : "fmi3GetUInt64");
             return 0;
         }

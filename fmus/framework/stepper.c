@@ -259,6 +259,12 @@ Status step_to(Instance *inst, const char *function, double t, double H)
                             "allowed per call at t = %.17g; stopped at the last successful time %.17g (take shorter "
                             "communication steps or a larger tol)", function, method, s->real[VR_tol],
                             MAX_EVALUATIONS_PER_CALL, reached, reached);
+            else if (solver == SOLVER_TAYLOR)
+                log_discard(inst, "%s: taylor of order %d with tol = %g: the step its coefficients allow "
+                            "underflowed at t = %.17g (tol is out of reach at this order in double precision, or "
+                            "the state is non-finite or singular there: take a larger tol or a higher "
+                            "taylor_order); stopped at the last successful time %.17g", function,
+                            s->integer[INT_taylor_order], s->real[VR_tol], reached, reached);
             else
                 log_discard(inst, "%s: %s with tol = %g: the step size underflowed at t = %.17g (the "
                             "state is non-finite, singular or too stiff there); stopped at the last successful "

@@ -4,11 +4,22 @@
 #ifndef TAYLOR_H
 #define TAYLOR_H
 
+#include <stdint.h>
+
 /* The highest order comes with the generated physics.h (from harness.fmi.methods.TAYLOR_ORDERS). */
 #ifndef TAYLOR_MAX_ORDER /* a model without states (the hand-written Spring) has no Taylor method */
 #define TAYLOR_MAX_ORDER 1
 #endif
 #define TAYLOR_SLOTS (TAYLOR_MAX_ORDER + 1)
+
+/* The evaluations a step of order p counts (in n_rhs and against the bound per call): coefficient k
+ * costs about k + 1 multiply-adds per operation of the equations where an evaluation costs one, so
+ * p (p + 1) / 2 in all; an over-count for the simple pendulum, whose sine dominates its evaluation, and
+ * about twice the five-link chain's cost. */
+static inline uint64_t taylor_charge(int order)
+{
+    return (uint64_t)order * (uint64_t)(order + 1) / 2;
+}
 
 /* (a b)_k */
 static inline double taylor_product(const double *a, const double *b, int k)

@@ -18,6 +18,9 @@ from harness.studies.work_precision import Point, pareto_front  # noqa: E402
 PEER_STYLE = {"scipy-RK45": "s", "scipy-DOP853": "D", "scipy-LSODA": "^", "fmpy-CVode": "v"}
 
 
+METHOD_PALETTE = plt.get_cmap("tab20").colors + plt.get_cmap("tab20b").colors  # 40: a colour per method
+
+
 def save(figure, out: Path, stem: str) -> list[Path]:
     paths = [out / f"{stem}.png", out / f"{stem}.svg"]
     for path in paths:
@@ -31,7 +34,6 @@ def work_precision_chart(points: list[Point], out: Path) -> list[Path]:
     seconds) per object; the Pareto front of each panel drawn as a black staircase through its points."""
     objects = list(dict.fromkeys(p.object for p in points))
     methods = list(dict.fromkeys(p.method for p in points))
-    colours = plt.get_cmap("tab20")
     figure, axes = plt.subplots(2, len(objects), figsize=(6 * len(objects), 10), squeeze=False)
     for column, name in enumerate(objects):
         mine = [p for p in points if p.object == name and math.isfinite(p.error) and p.error > 0]
@@ -44,7 +46,8 @@ def work_precision_chart(points: list[Point], out: Path) -> list[Path]:
                 peer = method in PEER_STYLE
                 ax.plot([getattr(p, cost) for p in series], [p.error for p in series],
                         marker=PEER_STYLE.get(method, "o"), linestyle="--" if peer else "-", markersize=4,
-                        color="black" if method == "fmpy-CVode" else colours(k % 20), label=method,
+                        color="black" if method == "fmpy-CVode" else METHOD_PALETTE[k % len(METHOD_PALETTE)],
+                        label=method,
                         alpha=0.9 if peer else 0.8)
             front = pareto_front(mine, cost)
             ax.step([getattr(p, cost) for p in front], [p.error for p in front], where="post", color="black",
@@ -198,7 +201,6 @@ def long_run_chart(series, out: Path) -> list[Path]:
     from harness.fmi.methods import METHOD
     objects = list(dict.fromkeys(s.object for s in series))
     methods = list(dict.fromkeys(s.method for s in series))
-    colours = plt.get_cmap("tab20")
     figure, axes = plt.subplots(1, len(objects), figsize=(6.5 * len(objects), 6), squeeze=False)
     for ax, name in zip(axes[0], objects):
         for s in (s for s in series if s.object == name):
@@ -206,7 +208,8 @@ def long_run_chart(series, out: Path) -> list[Path]:
             if not points:
                 continue
             symmetric = METHOD[s.method].symmetric if s.method in METHOD else False
-            colour = SYMMETRIC_COLOURS.get(s.method) or colours(methods.index(s.method) % 20)
+            colour = (SYMMETRIC_COLOURS.get(s.method)
+                      or METHOD_PALETTE[methods.index(s.method) % len(METHOD_PALETTE)])
             ax.plot(*zip(*points), color=colour, linewidth=2.4 if symmetric else 1.0,
                     linestyle="-" if symmetric else "--", label=f"{s.method} (slope {s.slope:.2f})")
         ax.set_xscale("log")

@@ -49,6 +49,9 @@ SUBSTEPS = {1: (4, 16, 64, 256, 1024, 4096), 2: (2, 4, 8, 16, 32, 64, 128, 256, 
             3: (2, 4, 8, 16, 32, 64, 128, 256), 4: (1, 2, 4, 8, 16, 32, 64), 5: (1, 2, 4, 8, 16, 32),
             6: (1, 2, 4, 8, 16)}
 RKF45_TOLERANCES = (1e-6, 1e-8, 1e-10, 1e-12, 1e-14)
+# taylor over its orders, one fixed step per communication step (which ends every step here: its own
+# step from tol would be longer, but the chart measures the error at every output point)
+TAYLOR_SWEEP_ORDERS = (2, 3, 4, 5, 6, 8, 10, 12, 16, 20)
 SCIPY_METHODS = ("RK45", "DOP853", "LSODA")
 PEER_TOLERANCES = (1e-4, 1e-6, 1e-8, 1e-10)
 
@@ -58,12 +61,13 @@ class Point:
     object: str
     method: str
     h: float  # internal step (fixed-step methods); NaN otherwise
-    tol: float  # tolerance (rkf45 and the peers); NaN otherwise
+    tol: float  # tolerance (rkf45 and the peers; 0 for taylor's fixed step); NaN otherwise
     error: float  # metres; inf when the run stopped early (fmi2Discard)
     rhs_evals: int
     seconds: float
     reference_error: float  # metres: the reference's estimated error (errors below it are not resolved)
     jacobian_columns: int = 0  # the implicit methods' Jacobians, in directional derivatives
+    order: int = 0  # taylor's taylor_order; 0 for the other methods
 
     @property
     def evaluations(self) -> int:
@@ -80,6 +84,7 @@ class Task:
     tol: float
     fmu: str
     repeats: int
+    order: int = 0  # taylor_order for taylor
 
 
 def step_scale(fmu: str | Path) -> int:
@@ -104,6 +109,7 @@ def settings(objects=PENDULUMS, repeats: int = 3, fmu_dir: Path | None = None, q
             tasks += [Task(name, method, STEP / (k * scale), nan, fmu, repeats)
                       for k in thin(SUBSTEPS[ORDER[method]])]
         tasks += [Task(name, "rkf45", nan, tol, fmu, repeats) for tol in thin(RKF45_TOLERANCES)]
+        tasks += [Task(name, "taylor", STEP / scale, 0.0, fmu, repeats, order) for order in thin(TAYLOR_SWEEP_ORDERS)]
         tasks += [Task(name, f"scipy-{m}", nan, tol, fmu, repeats) for m in SCIPY_METHODS
                   for tol in thin(PEER_TOLERANCES)]
         tasks += [Task(name, "fmpy-CVode", nan, tol, fmu, repeats) for tol in thin(PEER_TOLERANCES)]
@@ -160,7 +166,9 @@ def _median_seconds(run, repeats: int):
 def _fmu_point(task: Task, reference: TracedReference) -> Point:
     grid = communication_grid(0.0, STOP, STEP)
     start = {"solver": task.method}
-    start.update({"h": task.h} if task.method != "rkf45" else {"tol": task.tol})
+    start.update({"tol": task.tol} if math.isnan(task.h) else {"h": task.h})
+    if task.order:
+        start.update(tol=task.tol, taylor_order=task.order)
     columns = traced_columns(task.fmu)
     with FmuInstance(task.fmu, name=task.object) as instance:
         recorder = Recorder(instance, grid, list(columns))
@@ -174,7 +182,7 @@ def _fmu_point(task: Task, reference: TracedReference) -> Point:
     error = math.inf if result.discarded_at is not None else \
         position_error(result.values[:, 1:1 + len(columns)], reference)
     return Point(task.object, task.method, task.h, task.tol, error, evaluations, seconds, reference.estimated_error,
-                 work - evaluations)
+                 work - evaluations, task.order)
 
 
 def _scipy_point(task: Task, reference: TracedReference) -> Point:
