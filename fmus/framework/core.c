@@ -201,15 +201,6 @@ Instance *core_instantiate(const char *function, Interface type, const char *nam
         return NULL;
     }
     memcpy(inst->name, name, length);
-#if N_STATES > 0
-    inst->taylor_work = (double (*)[TAYLOR_SLOTS])allocate(TAYLOR_SERIES, sizeof *inst->taylor_work);
-    if (!inst->taylor_work) {
-        release(inst->name);
-        release(inst);
-        log_error(&reporter, "%s: out of memory", function);
-        return NULL;
-    }
-#endif
     inst->type = type;
     inst->emit = emit;
     inst->api_logger = api_logger;

@@ -207,6 +207,14 @@ Status step_to(Instance *inst, const char *function, double t, double H)
     f.unconverged = 0;
     f.out_of_budget = 0;
     f.taylor_order = s->integer[INT_taylor_order];
+    if (solver == SOLVER_TAYLOR && !inst->taylor_work) {
+        inst->taylor_work = (double (*)[TAYLOR_SLOTS])inst->allocate(TAYLOR_SERIES, sizeof *inst->taylor_work);
+        if (!inst->taylor_work) {
+            log_error(inst, "%s: out of memory for the Taylor method's %d work series of %d coefficients", function,
+                      TAYLOR_SERIES, TAYLOR_SLOTS);
+            return STATUS_ERROR;
+        }
+    }
     f.taylor_work = inst->taylor_work;
     f.acceptable = state_acceptable;
     f.jacobian = jacobian_at;
