@@ -4,7 +4,7 @@ in one fmi2DoStep, each method at its cheapest setting, measured side by side.
 
 For each fixed-step method the setting that meets the target with the fewest right-hand-side
 evaluations (n_rhs plus the implicit methods' Jacobian columns) is searched first, among internal
-steps 10 s / n and, for rkf45, tolerances; for taylor every even order from 6 to 30 with its fixed
+steps 10 s / n and, for rkf45 and gbs, tolerances; for taylor every even order from 6 to 30 with its fixed
 step (tol = 0) and with its step chosen for tol, the fastest of those that meet the target (its cost
 per step grows with the square of the order, its evaluations, one per coefficient order, only with
 the order). Then all are timed, interleaved, median of repeats. scipy's DOP853 on the same
@@ -32,7 +32,7 @@ from scipy.integrate import solve_ivp  # noqa: E402
 
 from harness.fmi.fmu_instance import FmuInstance  # noqa: E402
 from harness.fmi.fmus import build_dir, build_fmus  # noqa: E402
-from harness.fmi.methods import FIXED_STEP, TAYLOR_ORDERS  # noqa: E402
+from harness.fmi.methods import ADAPTIVE, FIXED_STEP, TAYLOR_ORDERS  # noqa: E402
 from harness.objects.thesis.equations import Pendulum  # noqa: E402
 from harness.objects.thesis.reference import exact_simple_pendulum  # noqa: E402
 
@@ -74,8 +74,8 @@ def cheapest(fmu: FmuInstance, method: str) -> Setting | None:
             candidates += [{"solver": "taylor", "taylor_order": order, "tol": 0.0, "h": STOP / n}
                            for n in np.unique(np.geomspace(1, 4000, 60).astype(int))]
             candidates += [{"solver": "taylor", "taylor_order": order, "tol": tol} for tol in np.geomspace(1e-6, 1e-16, 41)]
-    elif method == "rkf45":
-        candidates = [{"solver": "rkf45", "tol": tol} for tol in np.geomspace(1e-6, 1e-14, 33)]
+    elif method in ADAPTIVE:
+        candidates = [{"solver": method, "tol": tol} for tol in np.geomspace(1e-6, 1e-14, 33)]
     else:
         candidates = [{"solver": method, "h": STOP / n} for n in np.unique(np.geomspace(10, 2e5, 120).astype(int))]
     meeting = []
@@ -128,7 +128,7 @@ def main(argv=None) -> int:
     args = parser.parse_args(argv)
     build_fmus()
     path = build_dir() / "fmus" / "SimplePendulum.fmu"
-    methods = [*FIXED_STEP, "rkf45", "taylor"]
+    methods = [*FIXED_STEP, *ADAPTIVE, "taylor"]
     with FmuInstance(path) as fmu:
         found = [s for s in (cheapest(fmu, m) for m in methods) if s is not None]
         timings = {id(s): [] for s in found}

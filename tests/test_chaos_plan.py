@@ -13,7 +13,7 @@ from harness.fmi.simulation import simulate
 from harness.scene.thesis_scene import load_thesis_scene
 from harness.studies.chaos import REACHABLE_ERROR, horizon, lyapunov_exponent
 from harness.studies.planner import plan_scene
-from harness.studies.stability import linearized_eigenvalues, method_tables, stable_over
+from harness.studies.stability import linearized_eigenvalues, plan_tables, stable_over
 
 
 def test_the_exponent_of_known_partings():
@@ -57,7 +57,7 @@ def test_the_plausible_plan_keeps_its_promises(double_plans):
     measured again through simulate; stable over the scene by the atlas's criterion."""
     system, plan, _ = double_plans
     start = dict(system.components[0].start)
-    start.update(solver=plan.method, h=plan.h)
+    start.update(plan.settings)
     result = simulate(system.components[0].fmu, system.stop, 0.04, start_values=start)
     assert result.discarded_at is None
     drift = float(np.max(np.abs(result["E"] - result["E"][0])))
@@ -66,6 +66,6 @@ def test_the_plausible_plan_keeps_its_promises(double_plans):
     assert drift == pytest.approx(plan.energy_error, rel=1e-9) and drift <= limit
     parameters = {k: float(v) for k, v in start.items() if not isinstance(v, str)}
     eigenvalues = linearized_eigenvalues("DoublePendulum", {"g": 9.81, "d": 0.0, "m1": 1.0, "m2": 1.0, **parameters})
-    assert stable_over(method_tables()[plan.method], eigenvalues, plan.h, system.stop)
+    assert stable_over(plan_tables()[plan.method], eigenvalues, plan.h, system.stop)
     # pointwise it is far off, as any affordable run is: that is what "plausible" says
     assert plan.verified_error > plan.tolerance

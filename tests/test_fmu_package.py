@@ -30,7 +30,7 @@ SPEC_DEFAULTS = {
 }
 PENDULUM_OUTPUTS = {"E_kin", "E_pot", "E", "n_rhs", "n_steps", "n_rejected", "n_jacobians", "n_iterations"}
 SOLVERS = ["euler", "midpoint", "heun", "rk3", "rk4", "rkf45", "nystrom5", "ab2", "ab3", "ab4", "ab5", "ab6",
-           "implicit_midpoint", "gauss_legendre4", "stormer_verlet", "abm2", "abm3", "abm4", "abm5", "abm6", "trapezoid", "taylor"]
+           "implicit_midpoint", "gauss_legendre4", "stormer_verlet", "abm2", "abm3", "abm4", "abm5", "abm6", "trapezoid", "taylor", "gbs"]
 
 
 @pytest.mark.compatibility(importer=f"fmpy {fmpy.__version__} validate_fmu", version="2.0", interface="CS, ME", platform="(model description)", criterion="no problem reported")

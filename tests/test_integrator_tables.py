@@ -87,7 +87,7 @@ def test_solver_order_matches_the_xml_enumeration(tables):
     assert items == list(tables) == ["euler", "midpoint", "heun", "rk3", "rk4", "rkf45", "nystrom5",
                                      "ab2", "ab3", "ab4", "ab5", "ab6",
                                      "implicit_midpoint", "gauss_legendre4", "stormer_verlet",
-                                     "abm2", "abm3", "abm4", "abm5", "abm6", "trapezoid", "taylor"]
+                                     "abm2", "abm3", "abm4", "abm5", "abm6", "trapezoid", "taylor", "gbs"]
 
 
 @pytest.mark.parametrize("name", list(EXPECTED_ORDER))

@@ -92,8 +92,7 @@ def test_every_object_can_be_planned_and_the_plan_holds(fmu_paths, scene):
     (plan,) = plan_scene(system, 1e-3, duration=1.0)
     assert plan.verified_error <= 1e-3
     (component,) = system.components
-    settings = {"model": "linear", "h": 0.01} if plan.model == "linear" else {"solver": plan.method, "h": plan.h}
-    planned = simulate(component.fmu, 1.0, 0.01, start_values={**component.start, **settings})
+    planned = simulate(component.fmu, 1.0, 0.01, start_values={**component.start, **plan.settings})
     tight = simulate(component.fmu, 1.0, 0.01, start_values={**component.start, "solver": "rkf45", "tol": 1e-12})
     for x, y in system.traces[component.name]:
         distance = np.hypot(np.asarray(planned[x]) - np.asarray(tight[x]), np.asarray(planned[y]) - np.asarray(tight[y]))

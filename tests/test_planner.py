@@ -13,9 +13,10 @@ import pytest
 from harness.cli import main
 from harness.cosim.system import load_system
 from harness.fmi.fmus import PROJECT_ROOT
+from harness.fmi.methods import plan_order
 from harness.objects.thesis.reference import exact_simple_pendulum
 from harness.studies.planner import plan_scene
-from harness.studies.stability import linearized_eigenvalues, method_tables, stable_over
+from harness.studies.stability import linearized_eigenvalues, plan_tables, stable_over
 
 SCENES = {
     "small swing, long": ({"p": {"fmu": "SimplePendulum", "start": {"phi": 0.05}}}, 20.0, 1e-3),
@@ -73,7 +74,7 @@ def test_never_dearer_than_a_default_that_meets_the_tolerance(plans, scene):
 @pytest.mark.parametrize("scene", list(SCENES))
 def test_no_plan_beyond_a_stability_limit(plans, scene):
     system, _, plan = plans[scene]
-    tables = method_tables()
+    tables = plan_tables()
     for p in plan:
         if p.model == "linear":
             continue
@@ -92,10 +93,33 @@ def test_the_verification_is_independent(plans):
     from harness.fmi.simulation import simulate
     system, tolerance, (plan,) = plans["large swing"]
     result = simulate(system.component("p").fmu, 10.0, 0.04,
-                      start_values={**system.component("p").start, "solver": plan.method, "h": plan.h})
+                      start_values={**system.component("p").start, **plan.settings})
     phi, _ = exact_simple_pendulum(3.0, result.time)
     error = np.max(np.hypot(result["x"] - np.sin(phi), result["y"] + np.cos(phi)))
     assert error == pytest.approx(plan.verified_error, rel=1e-6) and error <= tolerance
+
+
+@pytest.mark.parametrize("method,h", [("taylor6", 0.04), ("taylor6", 0.02), ("taylor10", 0.04)])
+def test_taylor_candidates_are_predicted_at_their_order(fmu_paths, tmp_path, method, h):
+    """The planner's taylor<order> candidates (taylor's fixed step, tol = 0): step doubling on the large
+    swing predicts their error within 20% of the exact elliptic solution's. (The planner rarely picks
+    them: a Taylor step of order p counts p (p + 1) / 2 evaluations, and ab6 meets the same error for
+    fewer.)"""
+    from harness.studies.planner import _columns, _predict
+    from harness.studies.references import ObjectRunner
+    system = load_system(scene_file(tmp_path, "swing", {"p": {"fmu": "SimplePendulum", "start": {"phi": 3.0}}}, 10.0))
+    component = system.component("p")
+    runner = ObjectRunner(component, 10.0, 0.04, _columns(system, component))
+    try:
+        predicted, cost, _ = _predict(runner, method, h, 1e-3)
+        positions, _ = runner.run(runner.settings(method, h))
+    finally:
+        runner.close()
+    phi, _ = exact_simple_pendulum(3.0, runner.grid)
+    error = np.max(np.hypot(positions[:, 0, 0] - np.sin(phi), positions[:, 0, 1] + np.cos(phi)))
+    assert predicted == pytest.approx(error, rel=0.2)
+    order = plan_order(method)
+    assert cost == round(10.0 / h) * order * (order + 1) // 2
 
 
 def test_plan_command_prints_and_writes(fmu_paths, tmp_path, capsys):

@@ -10,10 +10,10 @@ from scipy.integrate import solve_ivp
 
 from harness.errors import HarnessError
 from harness.fmi.methods import TAYLOR_ORDERS
-from harness.objects.build import derive_fmu
-from harness.objects.proof import object_file_in
 from harness.objects.registry import object_names
 from harness.objects.thesis.reference import exact_simple_pendulum, slope
+
+from method_checks import assert_polynomial_motion_is_exact, ball_fmu, states_under_a_varying_force
 
 PHI0 = 0.5
 
@@ -55,57 +55,16 @@ def test_a_high_order_is_exact_to_rounding_at_large_steps(open_fmu):
     assert fmu.get("n_steps", "n_rhs") == [40, 40 * charge(30)]
 
 
-FREE_FALL = """
-identifier = "Ball"
-description = "a point mass in a vertical plane under gravity, pushed by a force"
-
-[parameters]
-g = { start = 9.81, unit = "m/s2" }
-m = { start = 2.0, unit = "kg", min = 0.1 }
-
-[coordinates]
-x = { start = 0.0, unit = "m", velocity = "x_dot", velocity_start = 3.0 }
-y = { start = 10.0, unit = "m", velocity = "y_dot", velocity_start = 4.0 }
-
-[energy]
-T = "m/2*speed2(ball)"
-U = "m*g*y"
-
-[points]
-ball = { x = "x", y = "y" }
-
-[forces]
-F = { point = "ball" }
-"""
-
-
 @pytest.fixture(scope="module")
 def ball(tmp_path_factory):
-    folder = tmp_path_factory.mktemp("ball")
-    (folder / "Ball.toml").write_text(FREE_FALL)
-    return derive_fmu(folder / "Ball.toml", folder / "out").path
+    return ball_fmu(tmp_path_factory.mktemp("ball"))
 
 
 def test_polynomial_motion_is_exact_per_step(ball):
     """Free fall is a parabola and, under a force growing linearly in time (its derivative set), a
     cubic: orders 2 and 3 give them exactly with one step per communication step of 1 s."""
-    from harness.fmi.fmu_instance import FmuInstance
-    with FmuInstance(ball) as fmu:
-        fmu.initialize(solver="taylor", taylor_order=2, tol=0.0, h=1.0)
-        for k in range(5):
-            assert fmu.do_step(float(k), 1.0) == 0
-        x, y, vx, vy = fmu.get("x", "y", "x_dot", "y_dot")
-        t = 5.0
-        assert x == pytest.approx(3.0 * t, abs=1e-13) and vx == pytest.approx(3.0, abs=1e-14)
-        assert y == pytest.approx(10.0 + 4.0 * t - 9.81 / 2 * t * t, abs=1e-12)
-        assert vy == pytest.approx(4.0 - 9.81 * t, abs=1e-13)
-        fmu.reset()
-        fmu.initialize(solver="taylor", taylor_order=3, tol=0.0, h=1.0)
-        for k in range(3):  # F_x = 2 t: x = 3 t + t^3 / (3 m)
-            fmu.set(F_x=2.0 * k)
-            fmu.set_input_derivatives(F_x=2.0)
-            assert fmu.do_step(float(k), 1.0) == 0
-        assert fmu.get("x")[0] == pytest.approx(3.0 * 3 + 27.0 / 6.0, abs=1e-13)
+    assert_polynomial_motion_is_exact(ball, {"solver": "taylor", "taylor_order": 2, "tol": 0.0, "h": 1.0},
+                                      {"solver": "taylor", "taylor_order": 3, "tol": 0.0, "h": 1.0})
 
 
 @pytest.mark.parametrize("name", object_names())
@@ -113,22 +72,10 @@ def test_every_object_agrees_with_an_independent_integrator(open_fmu, fmu_paths,
     """taylor (order 20, tol 1e-13) against rkf45 at tol 1e-13 (the generated right-hand side, not
     the recurrences) over 1 s with a force varying in time on its first input: within 1e-8 in every
     state."""
-    spec = object_file_in(fmu_paths[name])
-    names = [c.name for c in spec.coordinates] + [c.velocity for c in spec.coordinates]
-    inputs = [name for force in spec.forces for name in force.inputs.values()]
-    results = []
-    for settings in ({"solver": "taylor", "taylor_order": 20, "tol": 1e-13}, {"solver": "rkf45", "tol": 1e-13}):
-        fmu = open_fmu(name)
-        fmu.initialize(**settings)
-        t = 0.0
-        for _ in range(10):
-            if inputs:
-                fmu.set(**{inputs[0]: 0.5 * np.sin(3 * t)})
-                fmu.set_input_derivatives(**{inputs[0]: 1.5 * np.cos(3 * t)})
-            assert fmu.do_step(t, 0.1) == 0, fmu.last_message()
-            t += 0.1
-        results.append(np.array(fmu.get(*names)))
-    assert np.max(np.abs(results[0] - results[1]) / (1 + np.abs(results[1]))) < 1e-8, (names, results)
+    names, taylor = states_under_a_varying_force(open_fmu, fmu_paths[name], name,
+                                                 {"solver": "taylor", "taylor_order": 20, "tol": 1e-13})
+    _, rkf45 = states_under_a_varying_force(open_fmu, fmu_paths[name], name, {"solver": "rkf45", "tol": 1e-13})
+    assert np.max(np.abs(taylor - rkf45) / (1 + np.abs(rkf45))) < 1e-8, (names, taylor, rkf45)
 
 
 def test_the_step_follows_tol(open_fmu):

@@ -17,7 +17,7 @@ from harness.objects.numeric_route import NumericLagrangian
 from harness.objects.object_file import read_object_file
 from harness.objects.proof import random_values
 from harness.objects.registry import object_file, object_names
-from harness.studies.work_precision import (FIXED_STEP, STEP, STOP, peer_equations, read_csv, reference_for,
+from harness.studies.work_precision import (ADAPTIVE, FIXED_STEP, STEP, STOP, peer_equations, read_csv, reference_for,
                                             step_scale)
 from test_work_precision import assert_slope_is_the_order, assert_tolerances_buy_accuracy
 
@@ -37,7 +37,7 @@ def test_every_method_and_peer_has_points(sweep):
     out, points = sweep
     assert (out / "work-precision.png").stat().st_size > 10_000
     for name in OBJECTS:
-        for method in [*FIXED_STEP, "rkf45", "taylor", "scipy-RK45", "scipy-DOP853", "scipy-LSODA", "fmpy-CVode"]:
+        for method in [*FIXED_STEP, *ADAPTIVE, "taylor", "scipy-RK45", "scipy-DOP853", "scipy-LSODA", "fmpy-CVode"]:
             mine = [p for p in points if p.object == name and p.method == method]
             if method == "stormer_verlet":  # none of these objects has a constant mass matrix
                 assert not mine

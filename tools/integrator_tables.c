@@ -44,6 +44,9 @@ int main(void)
     for (solver = 1; solver <= SOLVER_COUNT; solver++) {
         const ButcherTableau *t = tableau_of(solver);
         if (t) print_tableau(t, solver == SOLVER_COUNT);
+        else if (solver == SOLVER_GBS)
+            printf("  \"%s\": {\"extrapolation\": true, \"columns\": %d}%s\n", solver_name(solver), GBS_MAX_COLUMNS,
+                   solver == SOLVER_COUNT ? "" : ",");
         else if (solver == SOLVER_TAYLOR)
             printf("  \"%s\": {\"taylor\": true}%s\n", solver_name(solver), solver == SOLVER_COUNT ? "" : ",");
         else if (solver == SOLVER_STORMER_VERLET)

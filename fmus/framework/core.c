@@ -565,6 +565,17 @@ static int machine_state_fits(const Instance *inst, int32_t state)
 /* A deserialized state passes the setters' checks: every value a user can set (parameters, inputs,
  * states) finite and in range, the parameters consistent together, and the framework's own numbers
  * (time, machine state, integrator memory) sane. Logs the first problem. */
+/* gbs's column proposal: 0 (none yet) or a target that leaves one column above it. */
+static int gbs_memory_valid(const IntegratorMemory *m)
+{
+#if N_STATES > 0
+    if (m->gbs_columns != 0 && (m->gbs_columns < 2 || m->gbs_columns >= GBS_MAX_COLUMNS)) return 0;
+#else
+    if (m->gbs_columns != 0) return 0;
+#endif
+    return m->gbs_rejected == 0 || m->gbs_rejected == 1;
+}
+
 static int restored_state_valid(Instance *inst, const char *function, const SimState *s)
 {
     char message[256];
@@ -600,7 +611,8 @@ static int restored_state_valid(Instance *inst, const char *function, const SimS
 #endif
     if (s->integrator.ab_count < 0 || s->integrator.ab_count > AB_MAX_STEPS || s->integrator.ab_head < 0 ||
         s->integrator.ab_head >= AB_MAX_STEPS || !isfinite(s->integrator.ab_step) ||
-        !(s->integrator.rkf_proposal >= 0.0) || !isfinite(s->integrator.rkf_proposal)) {
+        !(s->integrator.step_proposal >= 0.0) || !isfinite(s->integrator.step_proposal) ||
+        !gbs_memory_valid(&s->integrator)) {
         log_error(inst, "%s: the FMU state's integrator memory is invalid", function);
         return 0;
     }

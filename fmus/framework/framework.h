@@ -78,7 +78,9 @@ typedef struct {
     int32_t ab_count;                              /* valid entries in ab_history */
     int32_t ab_head;                               /* slot of the newest entry */
     double ab_step;                                /* substep the history was taken with */
-    double rkf_proposal;                           /* rkf45: next step size, 0 = start from h */
+    double step_proposal;                          /* rkf45, gbs: next step size, 0 = start from h */
+    int32_t gbs_columns;                           /* gbs: the column to reach next step, 0 = from tol */
+    int32_t gbs_rejected;                          /* gbs: the last step was rejected (no growth next) */
 } IntegratorMemory;
 
 /* Everything that makes up the FMU state: plain numbers only, so it serializes as bytes and

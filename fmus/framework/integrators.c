@@ -58,6 +58,7 @@ const ButcherTableau TABLEAU_TRAPEZOID = {
 
 const char STORMER_VERLET_NAME[] = "stormer_verlet";
 const char TAYLOR_NAME[] = "taylor";
+const char GBS_NAME[] = "gbs";
 
 const AdamsBashforth AB2 = {"ab2", 2, {3.0 / 2, -1.0 / 2}, &TABLEAU_RK4, 0, {0}};
 const AdamsBashforth AB3 = {"ab3", 3, {23.0 / 12, -16.0 / 12, 5.0 / 12}, &TABLEAU_RK4, 0, {0}};
@@ -499,6 +500,7 @@ const char *solver_name(int solver)
     const AdamsBashforth *ab = adams_bashforth_of(solver);
     if (solver == SOLVER_STORMER_VERLET) return STORMER_VERLET_NAME;
     if (solver == SOLVER_TAYLOR) return TAYLOR_NAME;
+    if (solver == SOLVER_GBS) return GBS_NAME;
     return tab ? tab->name : ab ? ab->name : "unknown solver";
 }
 
@@ -658,39 +660,58 @@ int64_t integrate_fixed(RightHandSide *f, int solver, IntegratorMemory *memory, 
     return done;
 }
 
+/* The start of an adaptive step that may take `work` evaluations: 0 (setting f->out_of_budget) when they
+ * would pass the work bound per call; else f0 = f(t, x), evaluated unless a rejected attempt from the same
+ * point left it. */
+ENGINE_INLINE int adaptive_step_start(RightHandSide *f, const Evaluator *e, int mode, double t, const double *x,
+                                      double *f0, int *have_f0, uint64_t work)
+{
+    if (f->evaluations + f->checks + work > f->budget) {
+        f->out_of_budget = 1;
+        return 0;
+    }
+    if (!*have_f0) {
+        evaluate(e, mode, t, x, f0);
+        f->evaluations++;
+        *have_f0 = 1;
+    }
+    return 1;
+}
+
+/* The error test of the adaptive methods: the RMS over the states of (a_i - b_i) / (tol (1 + |x_i|)), b NULL
+ * for zero; 1 or less passes. */
+static double scaled_error(const double *x, const double *a, const double *b, double tol)
+{
+    double norm = 0.0;
+    int i;
+    for (i = 0; i < N_STATES; i++) {
+        const double scaled = (b ? a[i] - b[i] : a[i]) / (tol * (1.0 + fabs(x[i])));
+        norm += scaled * scaled;
+    }
+    return sqrt(norm / N_STATES);
+}
+
 double integrate_adaptive(RightHandSide *f, IntegratorMemory *memory, double *x, double t0, double t_end,
                           double h_initial, double tol, int check_each)
 {
     const Evaluator e = evaluator_of(f);
     const int mode = forces_mode(f);
     const double smallest = 1e-14 * (fabs(t_end) > 1.0 ? fabs(t_end) : 1.0);
-    double h = memory->rkf_proposal > 0.0 ? memory->rkf_proposal : h_initial;
+    double h = memory->step_proposal > 0.0 ? memory->step_proposal : h_initial;
     double t = t0;
     double f0[STATE_SLOTS] = {0}, y[STATE_SLOTS], err[STATE_SLOTS];
-    int have_f0 = 0, rejected_before = 0, i;
+    int have_f0 = 0, rejected_before = 0;
     while (t < t_end) {
         const double remaining = t_end - t;
         const int last = h >= remaining;
         const double step = last ? remaining : h;
-        double norm = 0.0, factor;
+        double norm, factor;
         int accept;
-        if (f->evaluations + f->checks + (uint64_t)TABLEAU_RKF45.stages > f->budget) { /* the work bound per call */
-            f->out_of_budget = 1;
-            break;
-        }
-        if (!have_f0) {
-            evaluate(&e, mode, t, x, f0);
-            f->evaluations++;
-            have_f0 = 1;
-        }
+        if (!adaptive_step_start(f, &e, mode, t, x, f0, &have_f0, (uint64_t)TABLEAU_RKF45.stages)) break;
         memcpy(y, x, sizeof y);
         runge_kutta_step(&e, mode, &TABLEAU_RKF45, t, step, y, f0, err);
         f->evaluations += (uint64_t)(TABLEAU_RKF45.stages - 1);
-        for (i = 0; i < N_STATES; i++) {
-            const double scaled = err[i] / (tol * (1.0 + fabs(x[i])));
-            norm += scaled * scaled;
-        }
-        norm = sqrt(norm / N_STATES);
+        norm = scaled_error(x, err, NULL, tol);
         accept = norm <= 1.0 && model_state_ok(f->model, y);
         if (accept && check_each) {
             f->checks++;
@@ -721,7 +742,171 @@ double integrate_adaptive(RightHandSide *f, IntegratorMemory *memory, double *x,
             if (h < smallest) break;
         }
     }
-    memory->rkf_proposal = h;
+    memory->step_proposal = h;
+    return t < t_end ? t : t_end;
+}
+
+/* ---- Gragg-Bulirsch-Stoer extrapolation (thesis 4.2: Richardson extrapolation). Row k of the table
+ * (k = 1 ... GBS_MAX_COLUMNS) starts from Gragg's modified midpoint rule with n_k = 2k substeps of H / n_k,
+ * whose error expands in even powers of the substep; the Aitken-Neville scheme in h^2 fills the row,
+ * T(k, j+1) = T(k, j) + (T(k, j) - T(k-1, j)) / ((n_k / n_(k-j))^2 - 1), and T(k, k), of order 2k, is the
+ * result. Its error is estimated by T(k, k) - T(k, k-1). Order and step control after Hairer, Norsett and
+ * Wanner (Solving ODEs I, II.9): each step aims at a column `target`, computes up to target + 1 and takes
+ * the first column from target - 1 on whose error passes; it gives up early when the error cannot pass by
+ * target + 1; the next target is the column that costs least per unit of time (A_k / H_k). */
+
+/* Right-hand sides to fill rows 1 ... k, f at the step's start included: 1 + sum (n_i - 1) = 1 + k^2. */
+static uint64_t gbs_work(int k)
+{
+    return 1 + (uint64_t)k * (uint64_t)k;
+}
+
+/* The first step's target column from tol alone (Hairer, Norsett and Wanner's ODEX). */
+static int gbs_start_column(double tol)
+{
+    const int k = (int)(-log10(tol + 1e-40) * 0.6 + 1.5);
+    return k < 2 ? 2 : k > GBS_MAX_COLUMNS - 1 ? GBS_MAX_COLUMNS - 1 : k;
+}
+
+/* x + H from (t, x) with f0 = f(t, x) by n substeps of the modified midpoint rule: z1 = x + h f0,
+ * z(m+1) = z(m-1) + 2 h f(z(m)); n - 1 evaluations. */
+ENGINE_INLINE void modified_midpoint(const Evaluator *e, int mode, double t, double H, int n, const double *x,
+                                     const double *f0, double *y)
+{
+    const double h = H / n;
+    double previous[STATE_SLOTS], slope[STATE_SLOTS];
+    int m, i;
+    UNROLL for (i = 0; i < N_STATES; i++) {
+        previous[i] = x[i];
+        y[i] = x[i] + h * f0[i];
+    }
+    for (m = 1; m < n; m++) {
+        evaluate(e, mode, t + m * h, y, slope);
+        UNROLL for (i = 0; i < N_STATES; i++) {
+            const double next = previous[i] + 2.0 * h * slope[i];
+            previous[i] = y[i];
+            y[i] = next;
+        }
+    }
+}
+
+/* Row k of the table in place: table[0 ... k-2] hold row k - 1 on entry, table[0 ... k-1] row k on return,
+ * from its first entry `first`. */
+static void extrapolate_row(double (*table)[STATE_SLOTS], int k, const double *first)
+{
+    int i, j;
+    for (i = 0; i < N_STATES; i++) {
+        double below = first[i]; /* T(k, j) */
+        for (j = 1; j < k; j++) {
+            const double ratio = (double)k / (double)(k - j);
+            const double next = below + (below - table[j - 1][i]) / (ratio * ratio - 1.0);
+            table[j - 1][i] = below;
+            below = next;
+        }
+        table[k - 1][i] = below;
+    }
+}
+
+/* The step column k's error estimate asks for: H / fac with fac = (err / 0.65)^(1/(2k-1)) / 0.94, fac within
+ * [m / 4, 1 / m] for m = 0.02^(1/(2k-1)) (ODEX's safety factors and bounds); a non-finite error cuts most. */
+static double gbs_step_for(int k, double H, double err)
+{
+    const double exponent = 1.0 / (2 * k - 1), least = pow(0.02, exponent);
+    double fac = pow(err / 0.65, exponent) / 0.94;
+    if (!(fac <= 4.0 / least)) fac = 4.0 / least; /* also NaN */
+    if (fac < least) fac = least;
+    return H / fac;
+}
+
+double integrate_extrapolation(RightHandSide *f, IntegratorMemory *memory, double *x, double t0, double t_end,
+                               double h_initial, double tol, int check_each)
+{
+    const Evaluator e = evaluator_of(f);
+    const int mode = forces_mode(f);
+    const double smallest = 1e-14 * (fabs(t_end) > 1.0 ? fabs(t_end) : 1.0);
+    double table[GBS_MAX_COLUMNS][STATE_SLOTS], first[STATE_SLOTS], f0[STATE_SLOTS] = {0};
+    double step_for[GBS_MAX_COLUMNS + 1], work_for[GBS_MAX_COLUMNS + 1];
+    double H = memory->step_proposal > 0.0 ? memory->step_proposal : h_initial;
+    double t = t0;
+    int target = memory->gbs_columns ? memory->gbs_columns : gbs_start_column(tol);
+    int rejected_before = memory->gbs_rejected, have_f0 = 0;
+    while (t < t_end) {
+        const double remaining = t_end - t;
+        const int last = H >= remaining;
+        const double step = last ? remaining : H;
+        int k, accepted = 0, failed = 0, next;
+        if (!adaptive_step_start(f, &e, mode, t, x, f0, &have_f0, gbs_work(target + 1))) break;
+        for (k = 1; k <= target + 1; k++) {
+            double err;
+            modified_midpoint(&e, mode, t, step, 2 * k, x, f0, first);
+            f->evaluations += (uint64_t)(2 * k - 1);
+            extrapolate_row(table, k, first);
+            if (k == 1) continue;
+            err = scaled_error(x, table[k - 1], table[k - 2], tol);
+            step_for[k] = gbs_step_for(k, step, err);
+            work_for[k] = (double)gbs_work(k) / step_for[k];
+            if (err != err) { /* a row went non-finite */
+                failed = 1;
+                break;
+            }
+            if (k < target - 1) continue;
+            if (err <= 1.0) {
+                accepted = 1;
+                break;
+            }
+            /* hopeless: the error cannot fall below 1 by column target + 1 */
+            if (k == target - 1 && err > (double)((target + 1) * target) * (double)((target + 1) * target)) break;
+            if (k == target && err > (double)(target + 1) * (double)(target + 1)) break;
+        }
+        if (k > target + 1) k = target + 1;
+        if (accepted && (!model_state_ok(f->model, table[k - 1]) ||
+                         (check_each && (f->checks++, !f->acceptable(f->context, t + step, table[k - 1]))))) {
+            accepted = 0;
+            failed = 1;
+        }
+        /* the next target: one column down if that is clearly cheaper per unit of time; one up after an
+         * accepted step if the column reached was clearly cheaper than the one below it */
+        next = k;
+        if (k > 2 && work_for[k - 1] < 0.8 * work_for[k]) next = k - 1;
+        else if (accepted && !rejected_before && k + 1 < GBS_MAX_COLUMNS && (k == 2 || work_for[k] < 0.9 * work_for[k - 1]))
+            next = k + 1;
+        if (next < 2) next = 2;
+        if (next > GBS_MAX_COLUMNS - 1) next = GBS_MAX_COLUMNS - 1; /* one column must stay above the target */
+        if (accepted) {
+            /* a column above the one computed: its step from the work ratio */
+            const double proposal = next > k ? step_for[k] * (double)gbs_work(next) / (double)gbs_work(k) : step_for[next];
+            memcpy(x, table[k - 1], STATE_SLOTS * sizeof(double));
+            t = last ? t_end : t + step;
+            have_f0 = 0;
+            memory->n_steps++;
+            /* a step cut short to land on t_end says nothing about the proposals: the step and column
+             * chosen for the full step stay */
+            if (last && step < H) {
+                rejected_before = 0;
+                break;
+            }
+            H = rejected_before && proposal > step ? step : proposal; /* no growth right after a rejection */
+            rejected_before = 0;
+        } else {
+            memory->n_rejected++;
+            rejected_before = 1;
+            if (failed) { /* a singular or non-finite result: cut hard, so that the step underflows if it persists */
+                H = 0.25 * step;
+                next = target;
+            } else {
+                if (next > target) next = target;
+                H = step_for[next];
+            }
+            if (H < smallest) {
+                target = next;
+                break;
+            }
+        }
+        target = next;
+    }
+    memory->step_proposal = H;
+    memory->gbs_columns = target;
+    memory->gbs_rejected = rejected_before;
     return t < t_end ? t : t_end;
 }
 

@@ -51,7 +51,7 @@ extern INTERNAL const ButcherTableau TABLEAU_EULER, TABLEAU_MIDPOINT, TABLEAU_HE
 #define NEWTON_TOLERANCE 1e-15
 #define NEWTON_PLATEAU 1e-10
 #define IMPLICIT_MAX_STAGES 2
-extern INTERNAL const char STORMER_VERLET_NAME[], TAYLOR_NAME[];
+extern INTERNAL const char STORMER_VERLET_NAME[], TAYLOR_NAME[], GBS_NAME[];
 
 /* Substeps between two checks of the state in a fixed-step pass: a failure costs at most this many
  * substeps redone, and the checks cost one evaluation per block. */
@@ -90,7 +90,7 @@ typedef struct {
 INTERNAL int64_t integrate_fixed(RightHandSide *f, int solver, IntegratorMemory *memory, double *x, double t0, double hs,
                         int64_t first, int64_t n, int check_each);
 
-/* Fehlberg 4(5) with step-size control from t0 to t_end; starts from memory->rkf_proposal (or
+/* Fehlberg 4(5) with step-size control from t0 to t_end; starts from memory->step_proposal (or
  * h_initial) and leaves its next proposal there. A step whose result fails model_state_ok (or, with
  * check_each, is not acceptable) is rejected like one with too large an error. Returns the time
  * reached: t_end on success, earlier when the step size underflowed (x is then the last accepted
@@ -104,6 +104,14 @@ INTERNAL double integrate_adaptive(RightHandSide *f, IntegratorMemory *memory, d
  * result that is not acceptable. */
 INTERNAL double integrate_taylor(RightHandSide *f, IntegratorMemory *memory, double *x, double t0, double t_end,
                                  double tol, int check_each);
+
+/* Gragg-Bulirsch-Stoer extrapolation from t0 to t_end, order and step chosen for tol; starts from
+ * memory->step_proposal (or h_initial) and memory->gbs_columns (or a column from tol) and leaves its next
+ * proposals there. A step whose result fails model_state_ok (or, with check_each, is not acceptable) is
+ * rejected and cut to a quarter. Returns the time reached: t_end on success, earlier at the work bound
+ * (f->out_of_budget) or where the step size underflowed (x is then the last accepted state). */
+INTERNAL double integrate_extrapolation(RightHandSide *f, IntegratorMemory *memory, double *x, double t0,
+                                        double t_end, double h_initial, double tol, int check_each);
 
 /* The tableau or coefficient set of a solver (NULL where it is the other kind). */
 INTERNAL const ButcherTableau *tableau_of(int solver);

@@ -8,14 +8,16 @@
 #include "integrators.h"
 
 
-/* Forgets the Adams-Bashforth history and the rkf45 step proposal: after a reset, or when solver,
+/* Forgets the Adams-Bashforth history and the adaptive methods' step and column proposals: after a reset, or when solver,
  * h or tol change. */
 void restart_integrator(Instance *inst)
 {
     inst->s.integrator.ab_count = 0;
     inst->s.integrator.ab_head = 0;
     inst->s.integrator.ab_step = 0.0;
-    inst->s.integrator.rkf_proposal = 0.0;
+    inst->s.integrator.step_proposal = 0.0;
+    inst->s.integrator.gbs_columns = 0;
+    inst->s.integrator.gbs_rejected = 0;
 }
 
 /* Input slopes drive a step only when set for it: those left from the last step (kept so that the
@@ -164,11 +166,12 @@ static void jacobian_at(void *context, double t, const double *x, const double *
     }
 }
 
-/* The adaptive methods: rkf45, and taylor with tol > 0. */
+/* The adaptive methods: rkf45, gbs, and taylor with tol > 0. */
 static double adaptive_pass(RightHandSide *f, int solver, IntegratorMemory *memory, double *x, double t, double t_end,
                             double h, double tol, int check_each)
 {
     if (solver == SOLVER_TAYLOR) return integrate_taylor(f, memory, x, t, t_end, tol, check_each);
+    if (solver == SOLVER_GBS) return integrate_extrapolation(f, memory, x, t, t_end, h, tol, check_each);
     return integrate_adaptive(f, memory, x, t, t_end, h, tol, check_each);
 }
 
@@ -232,12 +235,12 @@ Status step_to(Instance *inst, const char *function, double t, double H)
         }
     }
 
-    if (solver == SOLVER_RKF45 && !(s->real[VR_tol] > 0.0)) {
-        log_error(inst, "%s: rkf45 needs a tolerance: variable tol = 0 is out of its range (0, 1] for rkf45 (tol = 0 "
-                  "means a fixed step only for taylor)", function);
+    if ((solver == SOLVER_RKF45 || solver == SOLVER_GBS) && !(s->real[VR_tol] > 0.0)) {
+        log_error(inst, "%s: %s needs a tolerance: variable tol = 0 is out of its range (0, 1] for %s (tol = 0 "
+                  "means a fixed step only for taylor)", function, method, method);
         return STATUS_ERROR;
     }
-    if (solver == SOLVER_RKF45 || (solver == SOLVER_TAYLOR && s->real[VR_tol] > 0.0)) {
+    if (solver == SOLVER_RKF45 || solver == SOLVER_GBS || (solver == SOLVER_TAYLOR && s->real[VR_tol] > 0.0)) {
         const double t_end = t + H;
         double x_start[STATE_SLOTS];
         IntegratorMemory memory_start = *memory;

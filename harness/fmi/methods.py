@@ -15,10 +15,14 @@ class Method:
     symmetric: bool = False  # time-reversible: bounded energy error over long runs
     implicit: bool = False   # solved per step by Newton's method with the exact Jacobian
     needs_constant_mass: bool = False  # only for objects whose mass matrix is constant
+    adaptive: bool = False   # its step (and order) controlled by tol > 0 alone
 
 
 TAYLOR_ORDERS = (2, 30)    # the range of taylor_order (the generated physics.h sizes its series for the last)
 TAYLOR_DEFAULT_ORDER = 20  # its start value
+# gbs's extrapolation table: column k from the modified midpoint rule with 2, 4, ..., 2k substeps, of order 2k;
+# the order control aims at a column below the last, so that one more can decide a step
+GBS_COLUMNS = 8
 
 METHODS = (
     Method("euler", 1, True, "explicit Euler, order 1"),
@@ -26,7 +30,7 @@ METHODS = (
     Method("heun", 2, True, "Heun, order 2"),
     Method("rk3", 3, True, "Runge-Kutta 3 (thesis 4.38, corrected)"),
     Method("rk4", 4, True, "classic Runge-Kutta 4"),
-    Method("rkf45", 4, False, "Runge-Kutta-Fehlberg 4(5) with step-size control on tol"),
+    Method("rkf45", 4, False, "Runge-Kutta-Fehlberg 4(5) with step-size control on tol", adaptive=True),
     Method("nystrom5", 5, True, "Kutta-Nystrom, order 5 (thesis 4.36, corrected)"),
     Method("ab2", 2, True, "Adams-Bashforth 2-step"),
     Method("ab3", 3, True, "Adams-Bashforth 3-step"),
@@ -51,23 +55,49 @@ METHODS = (
            f"Taylor method of order taylor_order ({TAYLOR_ORDERS[0]} to {TAYLOR_ORDERS[1]}), its coefficients by Taylor "
            "arithmetic on the generated equations; fixed step h with tol = 0, else the step from its last two "
            "coefficients (Jorba and Zou)"),
+    Method("gbs", 2 * GBS_COLUMNS, False,
+           f"Gragg-Bulirsch-Stoer extrapolation: the modified midpoint rule with 2, 4, ..., {2 * GBS_COLUMNS} substeps "
+           f"extrapolated in h^2 (orders 4 to {2 * GBS_COLUMNS}); order and step chosen for tol, which must be > 0",
+           adaptive=True),
 )
 SOLVERS = tuple(m.name for m in METHODS)
-# The methods a plan (a method and its step, harness.studies.planner) may name: taylor's fixed step also
-# needs tol = 0, which plans do not carry.
-PLANNABLE = tuple(m.name for m in METHODS if m.name != "taylor")
 FIXED_STEP = tuple(m.name for m in METHODS if m.fixed_step)
+ADAPTIVE = tuple(m.name for m in METHODS if m.adaptive)  # rkf45 and gbs: tol > 0 is all they take
 ORDER = {m.name: m.order for m in METHODS}
 SYMMETRIC = tuple(m.name for m in METHODS if m.symmetric)
 IMPLICIT = tuple(m.name for m in METHODS if m.implicit)
 METHOD = {m.name: m for m in METHODS}
+
+# What a plan (a method and its step, harness.studies.planner) may name: every fixed-step method, and taylor
+# with its fixed step (tol = 0) at a few orders, named taylor<order>.
+PLAN_TAYLOR_ORDERS = (6, 10, 16)
+_TAYLOR_PLANS = {f"taylor{order}": order for order in PLAN_TAYLOR_ORDERS}
+PLANNABLE = (*FIXED_STEP, *_TAYLOR_PLANS)
+
+
+def plan_solver(choice: str) -> str:
+    """The solver a plan's method runs."""
+    return "taylor" if choice in _TAYLOR_PLANS else choice
+
+
+def plan_order(choice: str) -> int:
+    """A plan's method's order of convergence."""
+    return _TAYLOR_PLANS.get(choice) or ORDER[choice]
+
+
+def plan_settings(choice: str, h: float) -> dict:
+    """The start values that run a plan's method at the internal step h."""
+    if choice in _TAYLOR_PLANS:
+        return {"solver": "taylor", "taylor_order": _TAYLOR_PLANS[choice], "tol": 0.0, "h": h}
+    return {"solver": choice, "h": h}
+
 
 # The counters every object with states reports (Integer outputs, in this order after n_rhs).
 COUNTERS = (
     ("n_rhs", "right-hand-side evaluations since initialization (Model Exchange: each new state, time or input the "
               "importer evaluates)"),
     ("n_steps", "accepted internal steps (closed-form evaluations for the linear model)"),
-    ("n_rejected", "steps rejected by the rkf45 error test"),
+    ("n_rejected", "steps rejected by the error test of rkf45 or gbs"),
     ("n_jacobians", "Jacobians of the right-hand side evaluated by the implicit methods (one per step, each from "
                     "one directional derivative per state)"),
     ("n_iterations", "Newton iterations of the implicit methods (each evaluates the right-hand side once per stage)"),

@@ -63,5 +63,7 @@ def equations_html(derivation: Derivation) -> str:
     else:
         rows.append(f"<p>No linear model: {html.escape(derivation.linear_reason)}.</p>")
     rows.append("<p>Integrator: chosen by <code>solver</code> with internal step <code>h</code> (rkf45: step "
-                "control on <code>tol</code>).</p>")
+                "control on <code>tol</code>; gbs: order and step control on <code>tol</code>; taylor: order "
+                "<code>taylor_order</code>, step control on <code>tol</code> or the fixed step <code>h</code> at "
+                "<code>tol</code> = 0).</p>")
     return "\n".join(rows) + "\n"

@@ -22,18 +22,19 @@ from harness.fmi.methods import COUNTER_NAMES
 # What every object gets from the framework; an object file may restate d, h or tol (to set its
 # default, range or position among the parameters) but may not use the other names.
 # The work one fmi2DoStep may do, in right-hand-side evaluations: a fixed-step method refuses a
-# communication step that needs more (fmi2Error), rkf45 stops where it runs out (fmi2Discard). About
+# communication step that needs more (fmi2Error), rkf45 and gbs stop where they run out (fmi2Discard). About
 # 0.1 s for the simple pendulum, 4 s for the five-link chain.
 MAX_EVALUATIONS_PER_CALL = 10_000_000
 FRAMEWORK_PARAMETERS = {
     "d": dict(start=0.0, unit="1/s", min=0.0, description="damping: each generalized acceleration gets -d times "
                                                             "its velocity"),
     "h": dict(start=0.008, unit="s", min=1e-9,
-              description=f"internal step (initial step for rkf45); one fmi2DoStep evaluates the right-hand side "
+              description=f"internal step (initial step for rkf45 and gbs); one fmi2DoStep evaluates the right-hand side "
                           f"at most {MAX_EVALUATIONS_PER_CALL:.0e} times".replace("e+0", "e")),
     "tol": dict(start=1e-6, unit="1", min=0.0, max=1.0,
-                description="tolerance: rkf45 keeps |err_i| <= tol (1 + |y_i|), RMS norm, and needs tol > 0; taylor "
-                            "keeps its last two terms below tol (1 + |y|_inf), or takes the fixed step h at tol = 0"),
+                description="tolerance: rkf45 and gbs keep their error estimates err_i within tol (1 + |y_i|), RMS "
+                            "norm, and need tol > 0; taylor keeps its last terms below tol (1 + |y|_inf), or takes the "
+                            "fixed step h at tol = 0"),
 }
 RESERVED = {"solver", "model", "taylor_order", *COUNTER_NAMES, "E_kin", "E_pot", "E", "t", "time"}
 FUNCTIONS = {name: getattr(sp, name) for name in (

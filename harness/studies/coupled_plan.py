@@ -16,11 +16,11 @@ from harness.cosim.master import MasterOptions, run_system
 from harness.cosim.structure import System
 from harness.errors import HarnessError
 from harness.fmi.fmu_instance import accepted_methods
-from harness.fmi.methods import ORDER, PLANNABLE
+from harness.fmi.methods import PLANNABLE, plan_order, plan_settings, plan_solver
 from harness.studies.coupling import derived_reference
 from harness.studies.monolithic import MonolithicScene
 from harness.studies.plans import DEFAULT, SAFETY, ObjectPlan, largest_distance, step_doubling
-from harness.studies.stability import method_tables, stable_over
+from harness.studies.stability import plan_tables, stable_over
 
 COMMUNICATION_DIVISORS = (1, 2, 4, 8, 16)
 INTERNAL_DIVISORS = (1, 2, 4, 8, 16, 32)
@@ -31,7 +31,7 @@ def _run(system: System, objects: dict[str, int], pairs: list[tuple[str, str]], 
     """Every object point at the frame times (frames, points, 2), which are whole multiples of H, and
     each object's evaluations (a Jacobian counts one per state, as `FmuInstance.work`); inf after a
     stop."""
-    components = [replace(c, start={**c.start, "solver": method, "h": h}) if c.name in objects else c
+    components = [replace(c, start={**c.start, **plan_settings(method, h)}) if c.name in objects else c
                   for c in system.components]
     result = run_system(replace(system, components=components),
                         MasterOptions(stop=duration, step=H, algorithm="gauss-seidel", extrapolation="linear"))
@@ -55,12 +55,12 @@ def plan_coupled(system: System, tolerance: float, duration: float, frame: float
     columns, pairs = derived_reference(system, grid)
     reference = np.stack([np.column_stack([columns[x], columns[y]]) for x, y in pairs], axis=1)
     owner = [x.split(".")[0] for x, _ in pairs]  # the object each traced point belongs to
-    tables = method_tables()
+    tables = plan_tables()
     # Linearized away from rest the equations can show a growing mode (a positive real part) that is no
     # instability of the motion: stability is judged on the frequencies and on the damping there is.
     eigenvalues = [complex(min(lam.real, 0.0), lam.imag) for lam in scene.eigenvalues()]
     fmus = {str(system.component(name).fmu) for name in objects}
-    methods = [m for m in PLANNABLE if all(m in accepted_methods(fmu) for fmu in fmus)]  # one method for all objects
+    methods = [m for m in PLANNABLE if all(plan_solver(m) in accepted_methods(fmu) for fmu in fmus)]  # one for all
 
     def errors_of(positions: np.ndarray) -> dict[str, float]:
         return {name: largest_distance(positions[:, [k for k, o in enumerate(owner) if o == name]],
@@ -73,7 +73,7 @@ def plan_coupled(system: System, tolerance: float, duration: float, frame: float
         def run(scale: float) -> np.ndarray:
             positions, evaluations[scale] = _run(system, objects, pairs, method, H * scale, h * scale, duration, grid)
             return positions
-        predicted = step_doubling(run, min(2, ORDER[method]), tolerance)
+        predicted = step_doubling(run, min(2, plan_order(method)), tolerance)
         return None if predicted is None else (predicted, evaluations[1.0])
 
     candidates = []

@@ -35,7 +35,7 @@ import numpy as np
 from harness.cosim.structure import Component, System
 from harness.errors import HarnessError
 from harness.fmi.fmu_instance import accepted_methods, float_start_values, read_description
-from harness.fmi.methods import ORDER, PLANNABLE
+from harness.fmi.methods import PLANNABLE, plan_order, plan_solver
 from harness.objects.proof import object_file_in
 from harness.objects.thesis.equations import OUTER_MASS, Pendulum
 from harness.objects.thesis.reference import tight_reference
@@ -45,7 +45,7 @@ from harness.studies.chaos import (REGIME_FACTOR, Parting, conservative_reason, 
 from harness.studies.chaos import horizon as chaos_horizon
 from harness.studies.plans import DEFAULT, SAFETY, ObjectPlan, largest_distance, step_doubling
 from harness.studies.references import ObjectRunner, fmu_reference, traced_columns
-from harness.studies.stability import linearized_eigenvalues, method_tables, stable_over
+from harness.studies.stability import linearized_eigenvalues, plan_tables, stable_over
 from harness.studies.sweep import run_sweep
 
 SUBSTEPS = (1, 2, 3, 4, 5, 6, 8, 10, 12, 16, 20, 25, 32, 40, 50, 64, 80, 100, 128, 160, 200, 256, 320, 400)
@@ -62,6 +62,12 @@ class Candidate:
 
 
 THESIS_PENDULUMS = tuple(OUTER_MASS)
+
+
+def plannable(fmu) -> list[str]:
+    """The methods a plan may name that the FMU accepts, fixed-step methods first."""
+    accepted = accepted_methods(str(fmu))
+    return [m for m in PLANNABLE if plan_solver(m) in accepted]
 
 
 def object_parameters(component: Component) -> dict[str, float]:
@@ -125,7 +131,7 @@ def _predict(runner: ObjectRunner, method: str, h: float, tolerance: float) -> t
     def run(scale: float) -> np.ndarray:
         positions, costs[scale] = runner.run(runner.settings(method, h * scale))
         return positions
-    predicted = step_doubling(run, ORDER[method], tolerance)
+    predicted = step_doubling(run, plan_order(method), tolerance)
     return None if predicted is None else (predicted, costs[1.0], "step doubling")
 
 
@@ -151,7 +157,7 @@ def _plausible_plan(component: Component, kind: str, runner: ObjectRunner, twin:
         return None
     limit = weight_n * pixel
     found = []
-    for method in (m for m in accepted_methods(str(component.fmu)) if m != "rkf45" and m in PLANNABLE):
+    for method in plannable(component.fmu):
         for k in SUBSTEPS:
             h = frame / k
             if not stable(method, h):
@@ -175,7 +181,7 @@ def _plausible_plan(component: Component, kind: str, runner: ObjectRunner, twin:
 
 
 def plan_object(job: tuple[Component, float, float, float, list, dict, float, bool]) -> ObjectPlan:
-    """Plans one independent object (runs in a worker; `tables` are method_tables(), read by the caller).
+    """Plans one independent object (runs in a worker; `tables` are plan_tables(), read by the caller).
     `pixel`: metres per pixel of the scene's camera; `exact`: pointwise plans only."""
     component, duration, frame, tolerance, columns, tables, pixel, exact = job
     kind = read_description(component.fmu).coSimulation.modelIdentifier
@@ -227,7 +233,7 @@ def _pointwise_plan(component: Component, kind: str, runner: ObjectRunner, frame
         linear, _ = runner.run({"model": "linear", "h": frame})
         candidates.append(Candidate("linear", "closed form", frame, largest_distance(linear, reference),
                                     len(runner.grid) - 1, "closed form against the reference"))
-    for method in (m for m in accepted_methods(str(component.fmu)) if m in PLANNABLE):  # in ORDER's order
+    for method in plannable(component.fmu):
         for k in SUBSTEPS:
             h = frame / k
             if not stable(method, h):
@@ -285,7 +291,7 @@ def plan_scene(system: System, tolerance: float | None = None, duration: float |
     for component in system.components:
         if object_file_in(component.fmu) is None:
             raise HarnessError(f"{component.name}: only objects made from an object file can be planned alone")
-    tables = method_tables()
+    tables = plan_tables()
     scale = system.camera.get("scale")
     pixel = 1.0 / float(scale) if scale else tolerance  # without a camera, the tolerance stands for a pixel
     jobs = [(c, duration, frame, tolerance, _columns(system, c), tables, pixel, exact) for c in system.components]

@@ -9,6 +9,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from harness.fmi.methods import plan_settings
+
 DEFAULT = ("rk4", 0.008)  # the coupled pendulums'; a single object's default is rk4 at its own h
 SAFETY = 0.5
 
@@ -33,6 +35,11 @@ class ObjectPlan:
     horizon: float = math.nan  # s: the predictability horizon for the tolerance
     energy_error: float = math.nan  # J: a plausible plan's largest energy error over the scene
     energy_limit: float = math.nan  # J: what one pixel of the centre of mass's height shows
+
+    @property
+    def settings(self) -> dict:
+        """The start values that run the plan's model, method and step."""
+        return {"model": "linear", "h": self.h} if self.model == "linear" else plan_settings(self.method, self.h)
 
 
 def largest_distance(a: np.ndarray, b: np.ndarray) -> float:

@@ -15,6 +15,7 @@ import numpy as np
 
 from harness.cosim.structure import Component
 from harness.fmi.fmu_instance import FmuInstance, read_description
+from harness.fmi.methods import plan_settings
 from harness.fmi.simulation import Recorder, communication_grid
 from harness.objects.proof import object_file_in
 from harness.objects.thesis.equations import OUTER_MASS
@@ -54,8 +55,8 @@ class ObjectRunner:
         return float(self.instance.variables["h"].start)
 
     def settings(self, method: str, h: float) -> dict:
-        """Start values for a fixed-step run of the nonlinear model."""
-        settings = {"solver": method, "h": h}
+        """Start values for a fixed-step run of the nonlinear model with a method a plan may name."""
+        settings = plan_settings(method, h)
         if self.switchable:
             settings["model"] = "nonlinear"
         return settings

@@ -31,7 +31,7 @@ from pathlib import Path
 import numpy as np
 
 from harness.errors import HarnessError
-from harness.fmi.methods import FIXED_STEP, TAYLOR_DEFAULT_ORDER
+from harness.fmi.methods import FIXED_STEP, PLANNABLE, TAYLOR_DEFAULT_ORDER, plan_order, plan_solver
 from harness.objects.derivation import derive
 from harness.objects.modes import normal_modes
 from harness.objects.object_file import ObjectSpec, read_object_file
@@ -310,6 +310,12 @@ def cases(fmu_dir: Path, full: bool = False, quick: bool = False, objects: list[
         raise HarnessError(f"{', '.join(chosen)}: no linear model to measure a stability limit on; the atlas "
                            "takes the SimplePendulum and objects with a linear model")
     return measured
+
+
+def plan_tables() -> dict:
+    """method_tables() with the taylor<order> a plan may name (harness.fmi.methods.PLANNABLE)."""
+    return {**method_tables(), **{name: {"taylor": True, "order": plan_order(name)} for name in PLANNABLE
+                                  if plan_solver(name) == "taylor"}}
 
 
 def atlas_tables() -> dict:

@@ -28,7 +28,7 @@ import numpy as np
 
 from harness.cosim.structure import Component
 from harness.fmi.fmu_instance import FmuInstance, accepted_methods, float_start_values, read_description
-from harness.fmi.methods import FIXED_STEP, ORDER
+from harness.fmi.methods import ADAPTIVE, FIXED_STEP, ORDER
 from harness.fmi.simulation import Recorder, communication_grid
 from harness.objects.derivation import derive
 from harness.objects.motion import ObjectMotion
@@ -48,7 +48,7 @@ PENDULUMS = ("SimplePendulum", "DoublePendulum", "SpringPendulum")
 SUBSTEPS = {1: (4, 16, 64, 256, 1024, 4096), 2: (2, 4, 8, 16, 32, 64, 128, 256, 512, 1024),
             3: (2, 4, 8, 16, 32, 64, 128, 256), 4: (1, 2, 4, 8, 16, 32, 64), 5: (1, 2, 4, 8, 16, 32),
             6: (1, 2, 4, 8, 16)}
-RKF45_TOLERANCES = (1e-6, 1e-8, 1e-10, 1e-12, 1e-14)
+ADAPTIVE_TOLERANCES = (1e-6, 1e-8, 1e-10, 1e-12, 1e-14)  # rkf45's and gbs's
 # taylor over its orders, one fixed step per communication step (which ends every step here: its own
 # step from tol would be longer, but the chart measures the error at every output point)
 TAYLOR_SWEEP_ORDERS = (2, 3, 4, 5, 6, 8, 10, 12, 16, 20)
@@ -61,7 +61,7 @@ class Point:
     object: str
     method: str
     h: float  # internal step (fixed-step methods); NaN otherwise
-    tol: float  # tolerance (rkf45 and the peers; 0 for taylor's fixed step); NaN otherwise
+    tol: float  # tolerance (rkf45, gbs and the peers; 0 for taylor's fixed step); NaN otherwise
     error: float  # metres; inf when the run stopped early (fmi2Discard)
     rhs_evals: int
     seconds: float
@@ -108,7 +108,8 @@ def settings(objects=PENDULUMS, repeats: int = 3, fmu_dir: Path | None = None, q
         for method in (m for m in FIXED_STEP if m in accepted):
             tasks += [Task(name, method, STEP / (k * scale), nan, fmu, repeats)
                       for k in thin(SUBSTEPS[ORDER[method]])]
-        tasks += [Task(name, "rkf45", nan, tol, fmu, repeats) for tol in thin(RKF45_TOLERANCES)]
+        tasks += [Task(name, method, nan, tol, fmu, repeats) for method in ADAPTIVE
+                  for tol in thin(ADAPTIVE_TOLERANCES)]
         tasks += [Task(name, "taylor", STEP / scale, 0.0, fmu, repeats, order) for order in thin(TAYLOR_SWEEP_ORDERS)]
         tasks += [Task(name, f"scipy-{m}", nan, tol, fmu, repeats) for m in SCIPY_METHODS
                   for tol in thin(PEER_TOLERANCES)]
