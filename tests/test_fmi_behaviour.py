@@ -258,6 +258,33 @@ def test_singular_spring_pendulum_discards(open_fmu):
     assert fmu.get_state() is not None
 
 
+@pytest.mark.parametrize("solver", ["euler", "midpoint", "taylor", "gbs", "rkf45"])
+def test_an_input_overflowing_along_its_slope_fails_the_step(open_fmu, solver):
+    """F_x = 1.7e308 with slope 1e308 overflows at t = 0.0977: a step past that ends in a discard, also for
+    the methods that never evaluate the right-hand side at a step's end, and no input or output read
+    afterwards is infinite."""
+    fmu = open_fmu("SimplePendulum")
+    fmu.initialize(solver=solver, tol=1e-8, h=1e6, phi=0.5, m=1e307)
+    fmu.set(F_x=1.7e308)
+    fmu.set_input_derivatives(F_x=1e308)
+    assert fmu.do_step(0.0, 0.0977) == DISCARD
+    assert fmu.last_successful_time() < 0.0976931348623158
+    values = fmu.get("F_x", "phi", "omega")
+    assert all(math.isfinite(v) for v in values), values
+
+
+@pytest.mark.parametrize("solver", ADAPTIVE)
+def test_a_huge_communication_step_ends_at_the_work_bound(open_fmu, solver):
+    """The floor below which a step counts as underflowed follows the current time, not the end of the
+    communication step: one call of 1e12 s on the chaotic double pendulum ends at the work bound, not in
+    a false underflow near its start."""
+    fmu = open_fmu("DoublePendulum")
+    fmu.initialize(solver=solver, tol=1e-6)
+    assert fmu.do_step(0.0, 1e12) == DISCARD
+    assert "right-hand-side evaluations allowed per call" in fmu.last_message()
+    assert fmu.last_successful_time() > 100.0
+
+
 @pytest.mark.parametrize("solver", ADAPTIVE)
 def test_an_adaptive_discard_reports_the_tolerance(open_fmu, solver):
     """Thrown at its pivot, the spring pendulum reaches r = 0 at t = 1/6: the step size underflows just

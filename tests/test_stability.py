@@ -12,9 +12,9 @@ import pytest
 from harness.cli import main
 from harness.fmi.methods import IMPLICIT
 from harness.fmi.fmus import build_dir
-from harness.studies.stability import (ATLAS_METHODS, DAMPING_RATIOS, GROWTH_LIMIT, PERIODS, Case, Probe, growth,
-                                       linearized_eigenvalues, method_tables, read_csv, simple_cases, theory_limit,
-                                       verlet_matrix)
+from harness.studies.stability import (ATLAS_METHODS, DAMPING_RATIOS, GROWTH_LIMIT, PERIODS, Case, Probe,
+                                       extrapolated_midpoint, growth, linearized_eigenvalues, method_tables, read_csv,
+                                       simple_cases, theory_limit, verlet_matrix)
 
 MODAL_OBJECTS = ("DoublePendulum", "SpringPendulum", "CartPendulum", "Chain3", "Chain5", "ElasticDoublePendulum")
 
@@ -115,6 +115,18 @@ def boundary(method: str, direction: complex) -> float:
     while growth(table, (r * 1.001) * direction) <= 1 + 1e-12 and r < 10:
         r *= 1.001
     return r
+
+
+@pytest.mark.parametrize("columns", [1, 2, 3, 4, 8])
+def test_the_extrapolated_midpoint_polynomial_is_the_exponential_to_order_2k(columns):
+    """gbs's R(z) at column k, read off as a polynomial by its values on the unit circle (a discrete
+    Fourier transform): degree 2k, its coefficients 1/m! up to z^(2k), as a method of order 2k needs."""
+    points = 64
+    z = np.exp(2j * np.pi * np.arange(points) / points)
+    coefficients = np.fft.fft(extrapolated_midpoint(z, columns)) / points
+    expected = [1 / math.factorial(m) for m in range(2 * columns + 1)]
+    assert np.allclose(coefficients[:2 * columns + 1], expected, rtol=0, atol=1e-13)
+    assert np.max(np.abs(coefficients[2 * columns + 1:])) < 1e-13  # nothing above z^(2k)
 
 
 @pytest.mark.parametrize("method", SPEC_REAL_AXIS)

@@ -343,7 +343,7 @@ fmi3Status fmi3SetFloat64(fmi3Instance instance, const fmi3ValueReference vr[], 
 
 /* ---------------------------------------------------------------- Int64 and UInt64 */
 
-/* The enumerations and taylor_order are parameters accessed as Int64, the counters outputs accessed as
+/* The enumerations, taylor_order and gbs_columns are parameters accessed as Int64, the counters outputs accessed as
  * UInt64: each variable through the function of its own type. */
 static int integer_type_matches(Instance *inst, const char *function, const fmi3ValueReference vr[], size_t n,
                                 int counters)

@@ -75,6 +75,7 @@ typedef struct {
     int out_of_budget; /* set when an adaptive method stopped at the budget */
     int taylor_order;
     double (*taylor_work)[TAYLOR_SLOTS];
+    int gbs_columns; /* gbs: its column with the fixed step (tol = 0), its highest with tol > 0 */
     /* J (N_STATES x N_STATES, row-major, J[i][j] = df_i/dx_j) at (t, x) with inputs u (NULL: all zero). */
     void (*jacobian)(void *context, double t, const double *x, const double *u, double *J);
     /* Whether a state is good enough to continue from (finite, not singular, finite outputs);
@@ -105,7 +106,8 @@ INTERNAL double integrate_adaptive(RightHandSide *f, IntegratorMemory *memory, d
 INTERNAL double integrate_taylor(RightHandSide *f, IntegratorMemory *memory, double *x, double t0, double t_end,
                                  double tol, int check_each);
 
-/* Gragg-Bulirsch-Stoer extrapolation from t0 to t_end, order and step chosen for tol; starts from
+/* Gragg-Bulirsch-Stoer extrapolation from t0 to t_end, order (column 2 ... f->gbs_columns) and step chosen
+ * for tol; starts from
  * memory->step_proposal (or h_initial) and memory->gbs_columns (or a column from tol) and leaves its next
  * proposals there. A step whose result fails model_state_ok (or, with check_each, is not acceptable) is
  * rejected and cut to a quarter. Returns the time reached: t_end on success, earlier at the work bound
@@ -121,7 +123,7 @@ INTERNAL const char *solver_name(int solver);
  * or for Adams-Bashforth one per step plus its Runge-Kutta start where `history` (the points it
  * keeps) is too short; for the implicit methods the most their iterations can take, each Jacobian
  * counted as one evaluation (f at the step's start) and one per state (its columns); for the Taylor
- * method its order per step (one evaluation per coefficient). */
-INTERNAL double evaluations_needed(int solver, int history, double substeps, int taylor_order);
+ * method taylor_charge(f->taylor_order) per step; for gbs with its fixed step 1 + k^2 (k = f->gbs_columns). */
+INTERNAL double evaluations_needed(int solver, int history, double substeps, const RightHandSide *f);
 
 #endif

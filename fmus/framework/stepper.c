@@ -65,17 +65,22 @@ static Status finish(Instance *inst, double t, double H_done, double t_reached)
     return STATUS_OK;
 }
 
-/* Fills real (a copy of the variables with the states x) with the derivatives and outputs at x;
- * returns whether x is a state to continue from: finite and regular, with finite derivatives and
- * outputs. Costs a right-hand side and the outputs, so it runs once per communication step, or per
- * substep only when redoing a failed step. */
+/* Fills real (a copy of the variables with the states x) with the inputs at t (moved along their
+ * slopes from the step's start), the derivatives and the outputs; returns whether x is a state to
+ * continue from: finite and regular, with finite inputs, derivatives and outputs (an input whose slope
+ * overflows it within the step fails the step, also for methods that never evaluate at its end). Costs
+ * a right-hand side and the outputs, so it runs once per communication step, or per substep only when
+ * redoing a failed step. */
 static int evaluate_at(const Instance *inst, double t, const double *x, double *real)
 {
     double u[INPUT_SLOTS];
+    int i;
     if (!model_state_ok(&inst->constants, x)) return 0;
     memcpy(real, inst->s.real, N_REAL * sizeof(double));
     memcpy(real, x, N_STATES * sizeof(double));
     gather_inputs(inst, u);
+    for (i = 0; i < N_INPUTS; i++) u[i] += (t - inst->s.time) * inst->s.input_derivative[i];
+    scatter_inputs(real, u);
     model_derivatives(&inst->constants, t, x, u, real + N_STATES);
     return model_outputs(&inst->constants, t, real + N_STATES, real) && first_non_finite(real, N_REAL) < 0;
 }
@@ -210,6 +215,7 @@ Status step_to(Instance *inst, const char *function, double t, double H)
     f.unconverged = 0;
     f.out_of_budget = 0;
     f.taylor_order = s->integer[INT_taylor_order];
+    f.gbs_columns = s->integer[INT_gbs_columns];
     if (solver == SOLVER_TAYLOR && !inst->taylor_work) {
         inst->taylor_work = (double (*)[TAYLOR_SLOTS])inst->allocate(TAYLOR_SERIES, sizeof *inst->taylor_work);
         if (!inst->taylor_work) {
@@ -235,12 +241,17 @@ Status step_to(Instance *inst, const char *function, double t, double H)
         }
     }
 
-    if ((solver == SOLVER_RKF45 || solver == SOLVER_GBS) && !(s->real[VR_tol] > 0.0)) {
-        log_error(inst, "%s: %s needs a tolerance: variable tol = 0 is out of its range (0, 1] for %s (tol = 0 "
-                  "means a fixed step only for taylor)", function, method, method);
+    if (solver == SOLVER_RKF45 && !(s->real[VR_tol] > 0.0)) {
+        log_error(inst, "%s: rkf45 needs a tolerance: variable tol = 0 is out of its range (0, 1] for rkf45 (tol = 0 "
+                  "means a fixed step only for taylor and gbs)", function);
         return STATUS_ERROR;
     }
-    if (solver == SOLVER_RKF45 || solver == SOLVER_GBS || (solver == SOLVER_TAYLOR && s->real[VR_tol] > 0.0)) {
+    if (solver == SOLVER_GBS && s->real[VR_tol] > 0.0 && s->real[VR_tol] < GBS_SMALLEST_TOL) {
+        log_error(inst, "%s: gbs with tol = %g: out of reach in double precision (its columns agree to rounding "
+                  "first); allowed for gbs: 0 (fixed step h) or [%g, 1]", function, s->real[VR_tol], GBS_SMALLEST_TOL);
+        return STATUS_ERROR;
+    }
+    if (solver == SOLVER_RKF45 || ((solver == SOLVER_GBS || solver == SOLVER_TAYLOR) && s->real[VR_tol] > 0.0)) {
         const double t_end = t + H;
         double x_start[STATE_SLOTS];
         IntegratorMemory memory_start = *memory;
@@ -294,9 +305,8 @@ Status step_to(Instance *inst, const char *function, double t, double H)
          * per block (or per substep when reporting), and the redo of one failing block with a check
          * after each of its substeps. */
         const double redone = fmin(planned, (double)CHECK_BLOCK);
-        const int order = s->integer[INT_taylor_order];
-        const double work = evaluations_needed(solver, history, planned, order) +
-                            (reporting ? planned : ceil(planned / CHECK_BLOCK) + evaluations_needed(solver, 0, redone, order) +
+        const double work = evaluations_needed(solver, history, planned, &f) +
+                            (reporting ? planned : ceil(planned / CHECK_BLOCK) + evaluations_needed(solver, 0, redone, &f) +
                                                    redone);
         if (work > MAX_EVALUATIONS_PER_CALL) {
             log_error(inst, "%s: communicationStepSize = %g with %s at h = %g needs %.0f right-hand-side "

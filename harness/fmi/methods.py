@@ -23,6 +23,9 @@ TAYLOR_DEFAULT_ORDER = 20  # its start value
 # gbs's extrapolation table: column k from the modified midpoint rule with 2, 4, ..., 2k substeps, of order 2k;
 # the order control aims at a column below the last, so that one more can decide a step
 GBS_COLUMNS = 8
+# gbs's least tol > 0: below it the columns agree to rounding before the error test can pass, and the step
+# shrinks without gaining accuracy until the work bound (about ten rounding units, as Hairer and Wanner's ODEX)
+GBS_SMALLEST_TOL = 1e-15
 
 METHODS = (
     Method("euler", 1, True, "explicit Euler, order 1"),
@@ -56,40 +59,44 @@ METHODS = (
            "arithmetic on the generated equations; fixed step h with tol = 0, else the step from its last two "
            "coefficients (Jorba and Zou)"),
     Method("gbs", 2 * GBS_COLUMNS, False,
-           f"Gragg-Bulirsch-Stoer extrapolation: the modified midpoint rule with 2, 4, ..., {2 * GBS_COLUMNS} substeps "
-           f"extrapolated in h^2 (orders 4 to {2 * GBS_COLUMNS}); order and step chosen for tol, which must be > 0",
-           adaptive=True),
+           f"Gragg-Bulirsch-Stoer extrapolation: the modified midpoint rule with 2, 4, ..., 2 k substeps extrapolated "
+           f"in h^2 (order 2 k, k = 2 ... gbs_columns <= {GBS_COLUMNS}); order and step chosen for tol, or column "
+           f"gbs_columns with the fixed step h at tol = 0", adaptive=True),
 )
 SOLVERS = tuple(m.name for m in METHODS)
 FIXED_STEP = tuple(m.name for m in METHODS if m.fixed_step)
-ADAPTIVE = tuple(m.name for m in METHODS if m.adaptive)  # rkf45 and gbs: tol > 0 is all they take
+ADAPTIVE = tuple(m.name for m in METHODS if m.adaptive)  # rkf45 and gbs: their step (and order) from tol > 0
 ORDER = {m.name: m.order for m in METHODS}
 SYMMETRIC = tuple(m.name for m in METHODS if m.symmetric)
 IMPLICIT = tuple(m.name for m in METHODS if m.implicit)
 METHOD = {m.name: m for m in METHODS}
 
-# What a plan (a method and its step, harness.studies.planner) may name: every fixed-step method, and taylor
-# with its fixed step (tol = 0) at a few orders, named taylor<order>.
+# What a plan (a method and its step, harness.studies.planner) may name: every fixed-step method, and taylor and
+# gbs with their fixed step (tol = 0) at a few orders, named taylor<order> and gbs<order>.
 PLAN_TAYLOR_ORDERS = (6, 10, 16)
-_TAYLOR_PLANS = {f"taylor{order}": order for order in PLAN_TAYLOR_ORDERS}
-PLANNABLE = (*FIXED_STEP, *_TAYLOR_PLANS)
+PLAN_GBS_ORDERS = (6, 10)
+_FIXED_SETTINGS = {**{f"taylor{order}": {"solver": "taylor", "taylor_order": order, "tol": 0.0}
+                      for order in PLAN_TAYLOR_ORDERS},
+                   **{f"gbs{order}": {"solver": "gbs", "gbs_columns": order // 2, "tol": 0.0} for order in PLAN_GBS_ORDERS}}
+PLANNABLE = (*FIXED_STEP, *_FIXED_SETTINGS)
 
 
 def plan_solver(choice: str) -> str:
     """The solver a plan's method runs."""
-    return "taylor" if choice in _TAYLOR_PLANS else choice
+    return _FIXED_SETTINGS[choice]["solver"] if choice in _FIXED_SETTINGS else choice
 
 
 def plan_order(choice: str) -> int:
     """A plan's method's order of convergence."""
-    return _TAYLOR_PLANS.get(choice) or ORDER[choice]
+    if choice in _FIXED_SETTINGS:
+        settings = _FIXED_SETTINGS[choice]
+        return settings.get("taylor_order") or 2 * settings["gbs_columns"]
+    return ORDER[choice]
 
 
 def plan_settings(choice: str, h: float) -> dict:
     """The start values that run a plan's method at the internal step h."""
-    if choice in _TAYLOR_PLANS:
-        return {"solver": "taylor", "taylor_order": _TAYLOR_PLANS[choice], "tol": 0.0, "h": h}
-    return {"solver": choice, "h": h}
+    return {**_FIXED_SETTINGS.get(choice, {"solver": choice}), "h": h}
 
 
 # The counters every object with states reports (Integer outputs, in this order after n_rhs).

@@ -18,7 +18,7 @@ from dataclasses import dataclass, field
 
 import sympy as sp
 
-from harness.fmi.methods import GBS_COLUMNS, TAYLOR_ORDERS
+from harness.fmi.methods import GBS_COLUMNS, GBS_SMALLEST_TOL, TAYLOR_ORDERS
 from harness.objects.c_expression import c_expr
 from harness.objects.derivation import Derivation, total_derivative
 from harness.objects.object_file import FRAMEWORK_PARAMETERS, MAX_EVALUATIONS_PER_CALL
@@ -244,7 +244,7 @@ def generate_c(derivation: Derivation) -> GeneratedC:
 
     header = _HEADER.format(
         taylor_available=1 if taylor.available else 0, taylor_reason=_c_string(taylor.reason),
-        taylor_series=max(1, taylor.series), taylor_max_order=TAYLOR_ORDERS[1], gbs_columns=GBS_COLUMNS,
+        taylor_series=max(1, taylor.series), taylor_max_order=TAYLOR_ORDERS[1], gbs_columns=GBS_COLUMNS, gbs_smallest_tol=GBS_SMALLEST_TOL,
         identifier=spec.identifier, n=n, nf=nf, has_linear=1 if has_linear else 0,
         split=0 if derivation.split_reason else 1, split_reason=_c_string(derivation.split_reason),
         max_evaluations=MAX_EVALUATIONS_PER_CALL,
@@ -533,6 +533,7 @@ _HEADER = """/* {identifier}: generated from modelDescription/{file} by harness.
 #define TAYLOR_MAX_ORDER {taylor_max_order}
 /* Gragg-Bulirsch-Stoer: columns of its extrapolation table (harness.fmi.methods). */
 #define GBS_MAX_COLUMNS {gbs_columns}
+#define GBS_SMALLEST_TOL {gbs_smallest_tol!r}
 #include "linear_model.h"
 
 /* Parameters (p_), the damping d and parameter-only subexpressions (k), set by model_prepare. */

@@ -13,7 +13,7 @@ import uuid
 from dataclasses import dataclass
 from xml.sax.saxutils import quoteattr
 
-from harness.fmi.methods import COUNTERS, METHODS, SOLVERS, TAYLOR_DEFAULT_ORDER, TAYLOR_ORDERS
+from harness.fmi.methods import COUNTERS, GBS_COLUMNS, METHODS, SOLVERS, TAYLOR_DEFAULT_ORDER, TAYLOR_ORDERS
 from harness.objects.derivation import Derivation
 from harness.objects.object_file import FRAMEWORK_PARAMETERS, ObjectFileError
 
@@ -126,6 +126,9 @@ def variables(derivation: Derivation) -> list[Variable]:
     result.append(Variable("taylor_order", "parameter", "tunable", type="Integer", start=TAYLOR_DEFAULT_ORDER,
                            min=TAYLOR_ORDERS[0], max=TAYLOR_ORDERS[1],
                            description="order of the Taylor method (solver = taylor)"))
+    result.append(Variable("gbs_columns", "parameter", "tunable", type="Integer", start=GBS_COLUMNS, min=2,
+                           max=GBS_COLUMNS, description=f"columns k of gbs's extrapolation table: its order 2 k with the "
+                                                        f"fixed step h (tol = 0), its highest order with tol > 0"))
     return result
 
 

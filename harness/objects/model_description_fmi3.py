@@ -143,7 +143,7 @@ def from_fmi2(fmi2_text: str, needs: dict[str, set[str]] | None = None) -> str:
             lines.append(f"    <Enumeration{attributes}/>")
         elif v.get("causality") == "output":  # the Integer outputs count: never negative, may pass 2^31
             lines.append(f"    <UInt64{attributes}/>")
-        else:  # an Integer parameter (taylor_order): Int64, set and got like the enumerations
+        else:  # an Integer parameter (taylor_order, gbs_columns): Int64, set and got like the enumerations
             lines.append(f"    <Int64{attributes}/>")
     lines += ['  </ModelVariables>', '  <ModelStructure>']
     structure = root.find("ModelStructure")

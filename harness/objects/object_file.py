@@ -17,7 +17,7 @@ from pathlib import Path
 import sympy as sp
 from sympy.parsing.sympy_parser import parse_expr, standard_transformations
 
-from harness.fmi.methods import COUNTER_NAMES
+from harness.fmi.methods import COUNTER_NAMES, GBS_SMALLEST_TOL
 
 # What every object gets from the framework; an object file may restate d, h or tol (to set its
 # default, range or position among the parameters) but may not use the other names.
@@ -33,10 +33,10 @@ FRAMEWORK_PARAMETERS = {
                           f"at most {MAX_EVALUATIONS_PER_CALL:.0e} times".replace("e+0", "e")),
     "tol": dict(start=1e-6, unit="1", min=0.0, max=1.0,
                 description="tolerance: rkf45 and gbs keep their error estimates err_i within tol (1 + |y_i|), RMS "
-                            "norm, and need tol > 0; taylor keeps its last terms below tol (1 + |y|_inf), or takes the "
-                            "fixed step h at tol = 0"),
+                            f"norm (gbs: tol >= {GBS_SMALLEST_TOL:g}); taylor keeps its last terms below tol (1 + |y|_inf); "
+                            "taylor and gbs take the fixed step h at tol = 0, which rkf45 refuses"),
 }
-RESERVED = {"solver", "model", "taylor_order", *COUNTER_NAMES, "E_kin", "E_pot", "E", "t", "time"}
+RESERVED = {"solver", "model", "taylor_order", "gbs_columns", *COUNTER_NAMES, "E_kin", "E_pot", "E", "t", "time"}
 FUNCTIONS = {name: getattr(sp, name) for name in (
     "sin", "cos", "tan", "asin", "acos", "atan", "atan2", "sinh", "cosh", "tanh", "exp", "log", "sqrt", "Abs")}
 FUNCTIONS["pi"] = sp.pi

@@ -53,9 +53,12 @@ FULL_DAMPING_RATIOS = (0.0, 0.05, 0.1, 0.175, 0.25, 0.375, 0.5, 0.625, 0.75, 0.8
 # 0.01 rad: the pole of its elliptic functions in imaginary time). At order 20 that radius, not the
 # stability polynomial, ends the stable steps (measured 5.6 where the polynomial allows 8.9), and at
 # order 8 the three-link chain's fastest mode falls 6% short of the polynomial's 3.4.
+# gbs with its fixed step at column 3 (order 6, as taylor's): R(z) is the extrapolated midpoint polynomial.
 ATLAS_TAYLOR_ORDER = 6
-ATLAS_METHODS = (*FIXED_STEP, "taylor")
-FIXED_STEP_SETTINGS = {"taylor": {"tol": 0.0, "taylor_order": ATLAS_TAYLOR_ORDER}}  # what else a method needs
+ATLAS_GBS_COLUMNS = 3
+ATLAS_METHODS = (*FIXED_STEP, "taylor", "gbs")
+FIXED_STEP_SETTINGS = {"taylor": {"tol": 0.0, "taylor_order": ATLAS_TAYLOR_ORDER},  # what else a method needs
+                       "gbs": {"tol": 0.0, "gbs_columns": ATLAS_GBS_COLUMNS}}
 
 
 def truncated_exponential(z, order: int = TAYLOR_DEFAULT_ORDER):
@@ -65,6 +68,25 @@ def truncated_exponential(z, order: int = TAYLOR_DEFAULT_ORDER):
         term = term * z / k
         total = total + term
     return total
+
+
+def extrapolated_midpoint(z, columns: int):
+    """R(z) of gbs at column k = columns with its fixed step: on y' = lambda y (z = h lambda) the modified
+    midpoint rule with n = 2, 4, ..., 2k substeps (w = z / n: y_1 = 1 + w, y_(m+1) = y_(m-1) + 2 w y_m), the
+    results extrapolated in h^2 (Aitken-Neville); a polynomial of degree 2k agreeing with exp(z) to z^(2k)."""
+    z = np.asarray(z, dtype=complex)
+    above: list = []
+    for j in range(1, columns + 1):
+        w = z / (2 * j)
+        previous, current = np.ones_like(z), 1 + w
+        for _ in range(2 * j - 1):
+            previous, current = current, previous + 2 * w * current
+        row = [current]
+        for i in range(1, j):
+            ratio = (j / (j - i)) ** 2 - 1
+            row.append(row[i - 1] + (row[i - 1] - above[i - 1]) / ratio)
+        above = row
+    return above[-1]
 
 
 @lru_cache(maxsize=None)
@@ -129,6 +151,8 @@ def growth(table: dict, z: complex) -> float:
         return pair_growth(z, z.conjugate() if z.imag else z)
     if table.get("taylor"):
         return float(abs(truncated_exponential(complex(z), table.get("order", TAYLOR_DEFAULT_ORDER))))
+    if table.get("extrapolation"):
+        return float(abs(extrapolated_midpoint(complex(z), table["columns"])))
     if "beta" in table:
         return float(np.max(np.abs(np.roots(np.concatenate([[1.0], -multistep_weights(table, z)])))))
     a, b = np.asarray(table["a"], dtype=float), np.asarray(table["b"], dtype=float)
@@ -313,14 +337,20 @@ def cases(fmu_dir: Path, full: bool = False, quick: bool = False, objects: list[
 
 
 def plan_tables() -> dict:
-    """method_tables() with the taylor<order> a plan may name (harness.fmi.methods.PLANNABLE)."""
-    return {**method_tables(), **{name: {"taylor": True, "order": plan_order(name)} for name in PLANNABLE
-                                  if plan_solver(name) == "taylor"}}
+    """method_tables() with the taylor<order> and gbs<order> a plan may name (harness.fmi.methods.PLANNABLE)."""
+    tables = method_tables()
+    for name in PLANNABLE:
+        if plan_solver(name) == "taylor":
+            tables[name] = {"taylor": True, "order": plan_order(name)}
+        elif plan_solver(name) == "gbs":
+            tables[name] = {"extrapolation": True, "columns": plan_order(name) // 2}
+    return tables
 
 
 def atlas_tables() -> dict:
-    """method_tables() with taylor at the atlas's order."""
-    return {**method_tables(), "taylor": {"taylor": True, "order": ATLAS_TAYLOR_ORDER}}
+    """method_tables() with taylor and gbs at the atlas's orders."""
+    return {**method_tables(), "taylor": {"taylor": True, "order": ATLAS_TAYLOR_ORDER},
+            "gbs": {"extrapolation": True, "columns": ATLAS_GBS_COLUMNS}}
 
 
 def atlas(fmu_dir: Path, methods=ATLAS_METHODS, full: bool = False, scheduler: str | None = None,
@@ -364,6 +394,8 @@ def growth_on_grid(table: dict, z: np.ndarray) -> np.ndarray:
     z = np.asarray(z, dtype=complex)
     if table.get("taylor"):
         return np.abs(truncated_exponential(z, table.get("order", TAYLOR_DEFAULT_ORDER)))
+    if table.get("extrapolation"):
+        return np.abs(extrapolated_midpoint(z, table["columns"]))
     if table.get("partitioned") or table.get("implicit"):  # few points need it: one at a time
         return np.vectorize(lambda value: growth(table, complex(value)))(z)
     if "beta" in table:
