@@ -4,11 +4,12 @@ in one fmi2DoStep, each method at its cheapest setting, measured side by side.
 
 For each fixed-step method the setting that meets the target with the fewest right-hand-side
 evaluations (n_rhs plus the implicit methods' Jacobian columns) is searched first, among internal
-steps 10 s / n and, for rkf45 and gbs, tolerances; for taylor every even order from 6 to 30 with its fixed
-step (tol = 0) and with its step chosen for tol, the fastest of those that meet the target (its cost
-per step grows with the square of the order, its evaluations, one per coefficient order, only with
-the order). Then all are timed, interleaved, median of repeats. scipy's DOP853 on the same
-equations in Python (harness.objects.thesis.equations) is timed beside them at its loosest rtol = atol
+steps 10 s / n and, for rkf45 and gbs, tolerances (gbs also with its fixed step at every column);
+for taylor every even order from 6 to 30 with its fixed step (tol = 0) and with its step chosen for
+tol, the fastest of those that meet the target (its cost per step grows with the square of the
+order, its evaluations, one per coefficient order, only with the order). Then all are timed,
+interleaved, median of repeats. scipy's DOP853 on the same equations in Python
+(harness.objects.thesis.equations) is timed beside them at its loosest rtol = atol
 that meets the target.
 
 Prints the table, each method's time as a multiple of the Taylor method's, and the evaluations.
@@ -32,7 +33,7 @@ from scipy.integrate import solve_ivp  # noqa: E402
 
 from harness.fmi.fmu_instance import FmuInstance  # noqa: E402
 from harness.fmi.fmus import build_dir, build_fmus  # noqa: E402
-from harness.fmi.methods import ADAPTIVE, FIXED_STEP, TAYLOR_ORDERS  # noqa: E402
+from harness.fmi.methods import ADAPTIVE, FIXED_STEP, GBS_COLUMNS, TAYLOR_ORDERS  # noqa: E402
 from harness.objects.thesis.equations import Pendulum  # noqa: E402
 from harness.objects.thesis.reference import exact_simple_pendulum  # noqa: E402
 
@@ -76,6 +77,10 @@ def cheapest(fmu: FmuInstance, method: str) -> Setting | None:
             candidates += [{"solver": "taylor", "taylor_order": order, "tol": tol} for tol in np.geomspace(1e-6, 1e-16, 41)]
     elif method in ADAPTIVE:
         candidates = [{"solver": method, "tol": tol} for tol in np.geomspace(1e-6, 1e-14, 33)]
+        if method == "gbs":  # and its fixed step at every column
+            candidates += [{"solver": "gbs", "gbs_columns": columns, "tol": 0.0, "h": STOP / n}
+                           for columns in range(2, GBS_COLUMNS + 1)
+                           for n in np.unique(np.geomspace(1, 4000, 60).astype(int))]
     else:
         candidates = [{"solver": method, "h": STOP / n} for n in np.unique(np.geomspace(10, 2e5, 120).astype(int))]
     meeting = []

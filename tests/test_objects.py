@@ -114,9 +114,9 @@ def test_derive_builds_a_valid_fmu_that_moves_as_the_numeric_route_says(tmp_path
 
 @pytest.mark.parametrize("name", object_names())
 def test_every_object_proves_itself(fmu_paths, name):
-    """The proof `harness validate` runs for any FMU made from an object file: numeric route,
-    every fixed-step method at its order (states and energy), rkf45 within its tolerance, Model
-    Exchange with CVode."""
+    """The proof `harness validate` runs for any FMU made from an object file: numeric route, every
+    fixed-step method (and taylor and gbs with their fixed step) at its order (states and energy), rkf45
+    and gbs within their tolerance, Model Exchange with CVode."""
     spec = object_file_in(fmu_paths[name])
     assert spec is not None and spec.identifier == name
     failed = [f"{p.name}: {p.detail}" for p in prove(fmu_paths[name], spec) if not p.passed]

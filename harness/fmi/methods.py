@@ -71,13 +71,23 @@ SYMMETRIC = tuple(m.name for m in METHODS if m.symmetric)
 IMPLICIT = tuple(m.name for m in METHODS if m.implicit)
 METHOD = {m.name: m for m in METHODS}
 
+# The methods that choose their own step unless tol = 0, and the settings that give their fixed step one order
+# (for gbs an even one): the object proof, the stability atlas and the planner run them so.
+VARIABLE_ORDER = ("taylor", "gbs")
+
+
+def fixed_step_settings(method: str, order: int) -> dict:
+    """The start values (but h) that run taylor or gbs with the fixed step at this order."""
+    if method == "taylor":
+        return {"solver": "taylor", "tol": 0.0, "taylor_order": order}
+    return {"solver": "gbs", "tol": 0.0, "gbs_columns": order // 2}
+
 # What a plan (a method and its step, harness.studies.planner) may name: every fixed-step method, and taylor and
 # gbs with their fixed step (tol = 0) at a few orders, named taylor<order> and gbs<order>.
 PLAN_TAYLOR_ORDERS = (6, 10, 16)
 PLAN_GBS_ORDERS = (6, 10)
-_FIXED_SETTINGS = {**{f"taylor{order}": {"solver": "taylor", "taylor_order": order, "tol": 0.0}
-                      for order in PLAN_TAYLOR_ORDERS},
-                   **{f"gbs{order}": {"solver": "gbs", "gbs_columns": order // 2, "tol": 0.0} for order in PLAN_GBS_ORDERS}}
+_FIXED_SETTINGS = {f"{method}{order}": fixed_step_settings(method, order)
+                   for method, orders in (("taylor", PLAN_TAYLOR_ORDERS), ("gbs", PLAN_GBS_ORDERS)) for order in orders}
 PLANNABLE = (*FIXED_STEP, *_FIXED_SETTINGS)
 
 

@@ -31,7 +31,8 @@ from pathlib import Path
 import numpy as np
 
 from harness.errors import HarnessError
-from harness.fmi.methods import FIXED_STEP, PLANNABLE, TAYLOR_DEFAULT_ORDER, plan_order, plan_solver
+from harness.fmi.methods import (FIXED_STEP, PLANNABLE, TAYLOR_DEFAULT_ORDER, VARIABLE_ORDER, fixed_step_settings,
+                                 plan_order, plan_solver)
 from harness.objects.derivation import derive
 from harness.objects.modes import normal_modes
 from harness.objects.object_file import ObjectSpec, read_object_file
@@ -56,9 +57,9 @@ FULL_DAMPING_RATIOS = (0.0, 0.05, 0.1, 0.175, 0.25, 0.375, 0.5, 0.625, 0.75, 0.8
 # gbs with its fixed step at column 3 (order 6, as taylor's): R(z) is the extrapolated midpoint polynomial.
 ATLAS_TAYLOR_ORDER = 6
 ATLAS_GBS_COLUMNS = 3
-ATLAS_METHODS = (*FIXED_STEP, "taylor", "gbs")
-FIXED_STEP_SETTINGS = {"taylor": {"tol": 0.0, "taylor_order": ATLAS_TAYLOR_ORDER},  # what else a method needs
-                       "gbs": {"tol": 0.0, "gbs_columns": ATLAS_GBS_COLUMNS}}
+ATLAS_METHODS = (*FIXED_STEP, *VARIABLE_ORDER)
+FIXED_STEP_SETTINGS = {"taylor": fixed_step_settings("taylor", ATLAS_TAYLOR_ORDER),  # what else a method needs
+                       "gbs": fixed_step_settings("gbs", 2 * ATLAS_GBS_COLUMNS)}
 
 
 def truncated_exponential(z, order: int = TAYLOR_DEFAULT_ORDER):
@@ -265,8 +266,8 @@ class Probe:
         self.runs += 1
         case, instance = self.case, self.instance
         instance.reset()
-        instance.initialize(0.0, solver=self.method, h=case.window / n, d=case.damping,
-                            **FIXED_STEP_SETTINGS.get(self.method, {}), **case.start)
+        settings = {"solver": self.method, **FIXED_STEP_SETTINGS.get(self.method, {})}
+        instance.initialize(0.0, h=case.window / n, d=case.damping, **settings, **case.start)
         start = instance.get("E")[0] - self.rest_energy
         if instance.do_step(0.0, case.window) != OK:
             return False
