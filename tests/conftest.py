@@ -11,12 +11,24 @@ from compatibility_record import CompatibilityPlugin, Row
 
 PENDULUMS = ("SimplePendulum", "DoublePendulum", "SpringPendulum")
 
+# The files that take a worker a minute or more (their shared set-up: the demo, the sanitizer build, the atlas),
+# longest first. Run first (./run test keeps the collection order: --no-loadscope-reorder), they leave the many
+# short files to even out the workers' ends; last, one of them would keep a worker busy while the others idle.
+LONGEST_FILES = ("test_memory_safety.py", "test_demo.py", "test_stability.py", "test_planner.py",
+                 "test_work_precision_objects.py", "test_work_precision.py", "test_hostile.py", "test_cli.py",
+                 "test_registry.py", "test_chaos_plan.py")
+
 
 def pytest_configure(config) -> None:
     config.addinivalue_line("markers", "compatibility(importer, version, interface, platform, criterion): the test "
                                        "measures a row of docs/compatibility.md (tests/compatibility_record.py)")
     config.pluginmanager.register(CompatibilityPlugin(PROJECT_ROOT / "docs" / "compatibility.md",
                                                       build_dir() / "compatibility.md"), "compatibility-record")
+
+
+def pytest_collection_modifyitems(session, config, items) -> None:
+    rank = {name: k for k, name in enumerate(LONGEST_FILES)}
+    items.sort(key=lambda item: rank.get(item.path.name, len(rank)))  # stable: the others keep their order
 
 
 @pytest.fixture
