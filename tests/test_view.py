@@ -31,6 +31,7 @@ from harness.cosim.master import Master, MasterOptions
 from harness.cosim.system import load_system
 from harness.fmi.fmu_instance import FmuInstance
 from harness.fmi.fmus import PROJECT_ROOT, build_dir
+from harness.fmi.methods import METHODS
 from harness.objects.thesis.reference import exact_simple_pendulum
 from harness.view.wasm import WASI_LIBC
 
@@ -212,9 +213,10 @@ def test_a_spherical_pendulum_is_drawn_and_dragged_as_its_scene_traces_it():
 
 
 def session(scene: str, plan: list[dict]) -> dict:
+    url = page(scene).as_uri()  # writes build/test-view, where the plan goes too
     plan_file = build_dir() / "test-view" / f"{scene}-plan.json"
     plan_file.write_text(json.dumps(plan))
-    seen = drive("session", page(scene).as_uri(), str(plan_file))
+    seen = drive("session", url, str(plan_file))
     assert not seen["problems"], seen["problems"]
     return seen
 
@@ -235,6 +237,34 @@ def test_the_method_and_step_chosen_on_the_page_are_those_the_fmu_runs():
     # a step the FMU refuses: its message on the page, the step before kept
     assert "h" in seen["refused"] and "-1" in seen["refused"]
     assert seen["kept"]["h"] == 0.01
+
+
+def test_the_order_chosen_on_the_page_is_the_one_the_fmu_runs():
+    """taylor and gbs get an order field (taylor_order, gbs_columns); a value the FMU refuses or that is no
+    32-bit integer is reported on the page and the order before kept."""
+    needs_browser()
+    plan = [{"set": ["simple", "solver", "taylor"]}, {"set": ["simple", "taylor_order", 8]},
+            {"set": ["simple", "tol", 0]}, {"set": ["simple", "h", 0.04]}, {"step": 3}, {"snapshot": "taylor"},
+            {"start": ["start", "simple"]},
+            {"set": ["simple", "taylor_order", 31]}, {"problem": "refused"},
+            {"set": ["simple", "taylor_order", 8.5]}, {"problem": "fraction"},
+            {"set": ["simple", "taylor_order", 2 ** 32 + 8]}, {"problem": "wide"}, {"start": ["kept", "simple"]},
+            {"set": ["simple", "solver", "gbs"]}, {"set": ["simple", "gbs_columns", 3]}, {"start": ["gbs", "simple"]}]
+    seen = session("thesis_scene", plan)
+    solvers = [m.name for m in METHODS]
+    assert seen["start"]["solver"] == solvers.index("taylor") + 1 and seen["start"]["taylor_order"] == 8
+    component = load_system(SCENES / "thesis_scene.json").component("simple")
+    got = seen["taylor"]["components"]["simple"]
+    expected = run_native(component.fmu, dict(component.start, solver="taylor", taylor_order=8, tol=0.0, h=0.04), 3,
+                          0.04, list(got))
+    for variable, value in got.items():
+        assert value == pytest.approx(expected[variable], rel=1e-12, abs=1e-12), variable
+    assert got["n_steps"] == 3  # 3 steps of 0.04 s at h = 0.04
+    assert "taylor_order" in seen["refused"] and "31" in seen["refused"] and "30" in seen["refused"]
+    assert "8.5" in seen["fraction"] and "integer" in seen["fraction"]
+    assert str(2 ** 32 + 8) in seen["wide"] and "integer" in seen["wide"]
+    assert seen["kept"]["taylor_order"] == 8
+    assert seen["gbs"]["solver"] == solvers.index("gbs") + 1 and seen["gbs"]["gbs_columns"] == 3
 
 
 def test_a_coupled_scene_runs_live_and_is_photographed():

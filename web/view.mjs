@@ -233,21 +233,34 @@ class LiveView {
           option.title = description;
           select.add(option);
         }
-        select.onchange = () => this.change(unit, "solver", Number(select.value));
+        select.onchange = () => {
+          this.change(unit, "solver", Number(select.value));
+          this.rebuildTable();  // the order field follows the method
+          this.report();
+        };
         method.append(select);
       } else method.textContent = "-";
-      for (const name of ["h", "tol"]) {
+      // the order field: taylor_order for taylor, gbs_columns for gbs, none for the other methods
+      const solver = meta.solvers.find(([, value]) => value === unit.setting("solver"))?.[0];
+      const order = meta.order_settings?.[solver];
+      for (const name of ["h", "tol", order]) {
         const cell = row.insertCell();
-        if (!(name in meta.defaults)) { cell.textContent = "-"; continue; }
+        if (name === undefined || !(name in meta.defaults)) { cell.textContent = "-"; continue; }
         const input = document.createElement("input");
         input.type = "number";
-        input.step = "any";
+        input.step = name === order ? "1" : "any";
+        input.title = name;
         input.value = unit.setting(name);
         Object.assign(input.dataset, { component: unit.name, setting: name });
+        // an Integer goes to the FMU as 32 bits: a fraction or a larger number would arrive as another value
+        const integer = meta.variables[name][1] === "integer";
         input.onchange = () => {
           const value = input.value.trim() === "" ? NaN : Number(input.value);
-          if (Number.isFinite(value)) return this.change(unit, name, value, input);
-          $("problem").textContent = `${unit.name}: ${name} = '${input.value}' is not a number; kept ${unit.setting(name)}`;
+          if (integer ? Number.isInteger(value) && Math.abs(value) < 2 ** 31 : Number.isFinite(value)) {
+            return this.change(unit, name, value, input);
+          }
+          $("problem").textContent = `${unit.name}: ${name} = '${input.value}' is not ${integer ? "a 32-bit integer" : "a number"}; ` +
+            `kept ${unit.setting(name)}`;
           input.value = unit.setting(name);
         };
         cell.append(input);

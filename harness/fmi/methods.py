@@ -74,13 +74,13 @@ METHOD = {m.name: m for m in METHODS}
 # The methods that choose their own step unless tol = 0, and the settings that give their fixed step one order
 # (for gbs an even one): the object proof, the stability atlas and the planner run them so.
 VARIABLE_ORDER = ("taylor", "gbs")
+# the Integer parameter that sets each one's order: taylor's order itself, gbs's columns (order 2 k)
+ORDER_SETTING = {"taylor": "taylor_order", "gbs": "gbs_columns"}
 
 
 def fixed_step_settings(method: str, order: int) -> dict:
     """The start values (but h) that run taylor or gbs with the fixed step at this order."""
-    if method == "taylor":
-        return {"solver": "taylor", "tol": 0.0, "taylor_order": order}
-    return {"solver": "gbs", "tol": 0.0, "gbs_columns": order // 2}
+    return {"solver": method, "tol": 0.0, ORDER_SETTING[method]: order if method == "taylor" else order // 2}
 
 # What a plan (a method and its step, harness.studies.planner) may name: every fixed-step method, and taylor and
 # gbs with their fixed step (tol = 0) at a few orders, named taylor<order> and gbs<order>.

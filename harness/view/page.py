@@ -22,6 +22,7 @@ from harness.cosim.master import MasterOptions, run_system
 from harness.cosim.system import System, component_files, load_system
 from harness.errors import HarnessError, where
 from harness.fmi.fmu_instance import FmuInstance, read_description
+from harness.fmi.methods import ORDER_SETTING
 from harness.fmi.simulation import MAX_POINTS
 from harness.objects.proof import object_file_in
 from harness.output import output_file, output_folder, written
@@ -126,6 +127,8 @@ def _module(fmu: Path, wasm: bytes) -> dict:
         "solvers": [[item.name, int(item.value), item.description or ""] for item in solver.declaredType.items]
         if solver is not None and solver.declaredType is not None and solver.type == "Enumeration" else [],
         "defaults": {v.name: _number(v) for v in variables if _kind(v) and v.start is not None},
+        # the setting that sets a method's order, where the FMU has it (taylor_order, gbs_columns)
+        "order_settings": {method: name for method, name in ORDER_SETTING.items() if name in by_name},
         "energy": next((n for n in ("E", "E_pot") if n in by_name and by_name[n].causality == "output"), None),
         "exact": EXACT.get(md.coSimulation.modelIdentifier),
         "coordinates": [], "points": [], "anchor": None, "spring_ends": [],
