@@ -226,6 +226,9 @@ def test_state_machine_and_argument_errors_name_what_is_wrong(fmi3_paths, fmi3_u
     huge = (ctypes.c_int64 * 1)(2**32 + 5)
     assert call("fmi3SetInt64", solver, 1, huge, 1) == fmi3Error
     assert "fmi3SetInt64: variable solver" in log.last() and "4294967301" in log.last()
+    for number in (2**53 + 1, 2**63 - 1, -2**63):  # named exactly, not as the nearest double
+        assert call("fmi3SetInt64", solver, 1, (ctypes.c_int64 * 1)(number), 1) == fmi3Error
+        assert f"= {number} is out of its allowed range" in log.last()
     counter = (ctypes.c_uint32 * 1)(refs["n_rhs"])
     assert call("fmi3SetUInt64", counter, 1, (ctypes.c_uint64 * 1)(), 1) == fmi3Error
     assert "fmi3SetUInt64: variable n_rhs" in log.last() and "only the FMU sets it" in log.last()

@@ -114,6 +114,29 @@ def test_fmu_state_round_trip_continues_bit_identically(open_fmu, name, solver):
     assert run_steps(other, 1.0, 20) == expected
 
 
+@pytest.mark.parametrize("solver, settings", [("abm6", {"h": 0.01}), ("gbs", {"tol": 1e-9})])
+def test_a_parameter_set_to_the_value_it_holds_keeps_the_integrators_memory(open_fmu, solver, settings):
+    """An importer that sets every tunable parameter before each step, to the values they hold, gets the run
+    without the sets, bit for bit and at the same work (the Adams history and gbs's proposals kept); a real
+    change between two steps (h or tol and back) restarts the integrator and costs more."""
+    runs = {}
+    for mode in ("plain", "same", "changed"):
+        fmu = open_fmu("DoublePendulum")
+        fmu.initialize(solver=solver, **settings)
+        t = 0.0
+        for k in range(40):
+            if mode == "same":
+                assert fmu.set(solver=solver, **settings) == OK
+            elif mode == "changed" and k == 20:
+                name, value = next(iter(settings.items()))
+                assert fmu.set(**{name: value * 2}) == OK and fmu.set(**{name: value}) == OK
+            assert fmu.do_step(t, 0.05) == OK
+            t += 0.05
+        runs[mode] = (fmu.get("phi1", "omega1", "phi2", "omega2"), fmu.work())
+    assert runs["same"] == runs["plain"]
+    assert runs["changed"][1] > runs["plain"][1]
+
+
 def test_serialized_state_restores_in_another_process(fmu_paths, unzipped, open_fmu, tmp_path):
     fmu = open_fmu("DoublePendulum")
     fmu.initialize(solver="ab4", h=0.01)

@@ -295,8 +295,10 @@ static const char *kind_of(const VariableInfo *v)
 }
 
 /* A finite value within the variable's range; logs and returns 0 otherwise. */
+/* exact: an Integer's value as set (a 64-bit one is not exact as a double; the message names it exactly), or
+ * NULL for a Real. */
 static int value_in_range(Instance *inst, const char *function, const VariableInfo *v, unsigned int vr,
-                          double value)
+                          double value, const int64_t *exact)
 {
     if (!isfinite(value)) {
         log_error(inst, "%s: variable %s (value reference %u) = %g is not a finite number (allowed range [%g, %g])",
@@ -304,8 +306,12 @@ static int value_in_range(Instance *inst, const char *function, const VariableIn
         return 0;
     }
     if (value < v->min || value > v->max) {
-        log_error(inst, "%s: variable %s (value reference %u) = %.17g is out of its allowed range [%g, %g]", function,
-                  v->name, vr, value, v->min, v->max);
+        if (exact)
+            log_error(inst, "%s: variable %s (value reference %u) = %lld is out of its allowed range [%g, %g]",
+                      function, v->name, vr, (long long)*exact, v->min, v->max);
+        else
+            log_error(inst, "%s: variable %s (value reference %u) = %.17g is out of its allowed range [%g, %g]",
+                      function, v->name, vr, value, v->min, v->max);
         return 0;
     }
 #if N_STATES > 0 && !SPLIT_ACCELERATIONS
@@ -330,7 +336,7 @@ static int value_in_range(Instance *inst, const char *function, const VariableIn
 
 /* Every check a value must pass before it is stored; logs and returns 0 on the first failure. */
 static int value_acceptable(Instance *inst, const char *function, const VariableInfo *v, unsigned int vr,
-                            double value)
+                            double value, const int64_t *exact)
 {
     const unsigned allowed = settable_in(v);
     char states[256];
@@ -340,12 +346,15 @@ static int value_acceptable(Instance *inst, const char *function, const Variable
                   function, v->name, vr, kind_of(v), core_state_name(inst, inst->s.machine_state), states);
         return 0;
     }
-    return value_in_range(inst, function, v, vr, value);
+    return value_in_range(inst, function, v, vr, value, exact);
 }
 
-/* What follows from a stored value: derived constants, integrator history, cached outputs. */
-static void value_stored(Instance *inst, const VariableInfo *v, unsigned int vr)
+/* What follows from a stored value: derived constants, integrator history, cached outputs. A parameter or
+ * state set to the value it held (changed = 0) changes nothing: the integrator keeps its Adams history and
+ * step proposals, which an importer setting every parameter before each step would otherwise throw away. */
+static void value_stored(Instance *inst, const VariableInfo *v, unsigned int vr, int changed)
 {
+    if (!changed && v->causality != CAUSALITY_INPUT) return;
     if (v->causality == CAUSALITY_PARAMETER) {
         inst->constants_valid = 0;
         restart_integrator(inst); /* solver, h or tol may have changed */
@@ -416,11 +425,12 @@ Status core_set_real(Instance *inst, const char *function, const unsigned int vr
     /* All values are checked before any is stored: a rejected call changes nothing. */
     for (i = 0; i < nvr; i++) {
         if (!real_reference_known(inst, function, vr[i])) return STATUS_ERROR;
-        if (!value_acceptable(inst, function, &REAL_VARIABLES[vr[i]], vr[i], value[i])) return STATUS_ERROR;
+        if (!value_acceptable(inst, function, &REAL_VARIABLES[vr[i]], vr[i], value[i], NULL)) return STATUS_ERROR;
     }
     for (i = 0; i < nvr; i++) {
+        const int changed = memcmp(&inst->s.real[vr[i]], &value[i], sizeof value[i]) != 0; /* -0.0 is a change */
         inst->s.real[vr[i]] = value[i];
-        value_stored(inst, &REAL_VARIABLES[vr[i]], vr[i]);
+        value_stored(inst, &REAL_VARIABLES[vr[i]], vr[i], changed);
     }
     return STATUS_OK;
 }
@@ -471,15 +481,18 @@ Status core_set_integer(Instance *inst, const char *function, const unsigned int
     for (i = 0; i < nvr; i++) {
         if (!integer_reference_known(inst, function, vr[i])) return STATUS_ERROR;
 #if N_INTEGER > 0
-        if (!value_acceptable(inst, function, &INTEGER_VARIABLES[vr[i] - INTEGER_VR_BASE], vr[i],
-                              (double)integer_at(value, width, i)))
+        const int64_t number = integer_at(value, width, i);
+        if (!value_acceptable(inst, function, &INTEGER_VARIABLES[vr[i] - INTEGER_VR_BASE], vr[i], (double)number,
+                              &number))
             return STATUS_ERROR;
 #endif
     }
 #if N_INTEGER > 0
     for (i = 0; i < nvr; i++) { /* within the variable's range, so within int32 */
-        inst->s.integer[vr[i] - INTEGER_VR_BASE] = (int32_t)integer_at(value, width, i);
-        value_stored(inst, &INTEGER_VARIABLES[vr[i] - INTEGER_VR_BASE], vr[i]);
+        const int32_t number = (int32_t)integer_at(value, width, i);
+        const int changed = inst->s.integer[vr[i] - INTEGER_VR_BASE] != number;
+        inst->s.integer[vr[i] - INTEGER_VR_BASE] = number;
+        value_stored(inst, &INTEGER_VARIABLES[vr[i] - INTEGER_VR_BASE], vr[i], changed);
     }
 #else
     (void)integer_at;
@@ -588,13 +601,13 @@ static int restored_state_valid(Instance *inst, const char *function, const SimS
     }
     for (i = 0; i < N_REAL; i++)
         if (settable_in(&REAL_VARIABLES[i]) && !value_in_range(inst, function, &REAL_VARIABLES[i], (unsigned int)i,
-                                                               s->real[i]))
+                                                               s->real[i], NULL))
             return 0;
 #if N_INTEGER > 0
     for (i = 0; i < N_INTEGER; i++)
         if (INTEGER_VARIABLES[i].causality == CAUSALITY_PARAMETER &&
             !value_in_range(inst, function, &INTEGER_VARIABLES[i], (unsigned int)(INTEGER_VR_BASE + i),
-                            s->integer[i]))
+                            s->integer[i], &(int64_t){s->integer[i]}))
             return 0;
 #endif
     if (s->slopes_set != 0 && s->slopes_set != 1) {

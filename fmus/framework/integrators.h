@@ -99,8 +99,8 @@ INTERNAL int64_t integrate_fixed(RightHandSide *f, int solver, IntegratorMemory 
 INTERNAL double integrate_adaptive(RightHandSide *f, IntegratorMemory *memory, double *x, double t0, double t_end,
                           double h_initial, double tol, int check_each);
 
-/* The Taylor method of order f->taylor_order from t0 to t_end with the step chosen from its last two
- * coefficients for tol (Jorba and Zou); no step is rejected. Returns the time reached: t_end on
+/* The Taylor method of order f->taylor_order from t0 to t_end with the step chosen from its last four
+ * coefficients for tol (after Jorba and Zou, who take two); no step is rejected. Returns the time reached: t_end on
  * success, earlier at the work bound (f->out_of_budget), where the step underflows, or before a
  * result that is not acceptable. */
 INTERNAL double integrate_taylor(RightHandSide *f, IntegratorMemory *memory, double *x, double t0, double t_end,

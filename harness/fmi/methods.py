@@ -56,8 +56,8 @@ METHODS = (
            symmetric=True, implicit=True),
     Method("taylor", TAYLOR_DEFAULT_ORDER, False,
            f"Taylor method of order taylor_order ({TAYLOR_ORDERS[0]} to {TAYLOR_ORDERS[1]}), its coefficients by Taylor "
-           "arithmetic on the generated equations; fixed step h with tol = 0, else the step from its last two "
-           "coefficients (Jorba and Zou)"),
+           "arithmetic on the generated equations; fixed step h with tol = 0, else the step from its last "
+           "coefficients (after Jorba and Zou, the radius of convergence from the last four)"),
     Method("gbs", 2 * GBS_COLUMNS, False,
            f"Gragg-Bulirsch-Stoer extrapolation: the modified midpoint rule with 2, 4, ..., 2 k substeps extrapolated "
            f"in h^2 (order 2 k, k = 2 ... gbs_columns <= {GBS_COLUMNS}); order and step chosen for tol, or column "

@@ -29,7 +29,7 @@ FRAMEWORK_PARAMETERS = {
     "d": dict(start=0.0, unit="1/s", min=0.0, description="damping: each generalized acceleration gets -d times "
                                                             "its velocity"),
     "h": dict(start=0.008, unit="s", min=1e-9,
-              description=f"internal step (initial step for rkf45 and gbs); one fmi2DoStep evaluates the right-hand side "
+              description=f"internal step (initial step for rkf45 and gbs); one Co-Simulation step evaluates the right-hand side "
                           f"at most {MAX_EVALUATIONS_PER_CALL:.0e} times".replace("e+0", "e")),
     "tol": dict(start=1e-6, unit="1", min=0.0, max=1.0,
                 description="tolerance: rkf45 and gbs keep their error estimates err_i within tol (1 + |y_i|), RMS "
