@@ -241,13 +241,23 @@ Status core_exit_initialization(Instance *inst, const char *function)
     if (!ensure_constants(inst, function)) return STATUS_ERROR;
 #if N_STATES > 0
     if (!state_acceptable(inst, inst->s.time, inst->s.real)) {
-        char reason[256];
+        char reason[256], states[256];
+        const int k = first_non_finite_at(inst, inst->s.time, inst->s.real);
+        size_t used = 0;
+        int i;
+        for (i = 0; i < N_STATES && used < sizeof states; i++) /* each state named, cut at the buffer's end */
+            used += (size_t)snprintf(states + used, sizeof states - used, "%s%s = %g", i ? ", " : "",
+                                     REAL_VARIABLES[i].name, inst->s.real[i]);
         if (model_explain_singularity(&inst->constants, inst->s.time, inst->s.real, reason, sizeof reason))
             log_error(inst, "%s: the start values of the states give a singular "
                       "configuration: %s", function, reason);
+        else if (k >= 0)
+            log_error(inst, "%s: the start values of the states (%s) make %s not finite (allowed: start values "
+                      "with finite derivatives and outputs)", function, states,
+                      REAL_VARIABLES[k].name);
         else
-            log_error(inst, "%s: the start values of the states give a singular configuration "
-                      "or non-finite derivatives or outputs", function);
+            log_error(inst, "%s: the start values of the states (%s) give a singular configuration", function,
+                      states);
         return STATUS_ERROR;
     }
 #else

@@ -142,6 +142,9 @@ INTERNAL void restart_integrator(Instance *inst);
 #if N_STATES > 0
 /* States x (of the Instance context) are finite and regular, with finite derivatives and outputs. */
 INTERNAL int state_acceptable(void *context, double t, const double *x);
+/* The first Real (state, derivative or output) that is not finite at (t, x), by value reference; -1 for
+ * none, or where the model refuses the configuration before computing. */
+INTERNAL int first_non_finite_at(const Instance *inst, double t, const double *x);
 #endif
 
 /* ---- core.c: what every API function does once its call is allowed in the current state. Each takes

@@ -105,6 +105,13 @@ static void report_internal_step(Instance *inst, double t, const double *real)
     inst->outputs_valid = outputs_valid;
 }
 
+int first_non_finite_at(const Instance *inst, double t, const double *x)
+{
+    double real[N_REAL];
+    if (!model_state_ok(&inst->constants, x) || evaluate_at(inst, t, x, real)) return -1;
+    return first_non_finite(real, N_REAL);
+}
+
 int state_acceptable(void *context, double t, const double *x)
 {
     Instance *inst = (Instance *)context;
