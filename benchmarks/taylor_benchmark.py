@@ -33,7 +33,7 @@ from scipy.integrate import solve_ivp  # noqa: E402
 
 from harness.fmi.fmu_instance import FmuInstance  # noqa: E402
 from harness.fmi.fmus import build_dir, build_fmus  # noqa: E402
-from harness.fmi.methods import ADAPTIVE, FIXED_STEP, GBS_COLUMNS, METHODS, TAYLOR_ORDERS  # noqa: E402
+from harness.fmi.methods import ADAPTIVE, FIXED_STEP, GBS_COLUMNS, SOLVERS, TAYLOR_ORDERS  # noqa: E402
 from harness.objects.thesis.equations import Pendulum  # noqa: E402
 from harness.objects.thesis.reference import exact_simple_pendulum  # noqa: E402
 
@@ -41,7 +41,7 @@ STOP = 10.0
 TARGET = 1e-11  # metres
 PHI0 = 0.5      # the FMU's default start (rad)
 # the methods the FMUs had before the Taylor method and its companions, whose items were appended after them
-EARLIER = tuple(m.name for m in METHODS[:[m.name for m in METHODS].index("abm2")])
+EARLIER = SOLVERS[:SOLVERS.index("abm2")]
 
 
 @dataclass

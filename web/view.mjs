@@ -246,14 +246,14 @@ class LiveView {
       for (const name of ["h", "tol", order]) {
         const cell = row.insertCell();
         if (name === undefined || !(name in meta.defaults)) { cell.textContent = "-"; continue; }
+        // an Integer goes to the FMU as 32 bits: a fraction or a larger number would arrive as another value
+        const integer = meta.variables[name][1] === "integer";
         const input = document.createElement("input");
         input.type = "number";
-        input.step = name === order ? "1" : "any";
+        input.step = integer ? "1" : "any";
         input.title = name;
         input.value = unit.setting(name);
         Object.assign(input.dataset, { component: unit.name, setting: name });
-        // an Integer goes to the FMU as 32 bits: a fraction or a larger number would arrive as another value
-        const integer = meta.variables[name][1] === "integer";
         input.onchange = () => {
           const value = input.value.trim() === "" ? NaN : Number(input.value);
           if (integer ? Number.isInteger(value) && Math.abs(value) < 2 ** 31 : Number.isFinite(value)) {

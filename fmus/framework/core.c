@@ -304,9 +304,8 @@ static const char *kind_of(const VariableInfo *v)
     return "a calculated variable";
 }
 
-/* A finite value within the variable's range; logs and returns 0 otherwise. */
-/* exact: an Integer's value as set (a 64-bit one is not exact as a double; the message names it exactly), or
- * NULL for a Real. */
+/* A finite value within the variable's range; logs and returns 0 otherwise. exact: an Integer's value as set
+ * (a 64-bit one is not exact as a double, and the message names it exactly), NULL for a Real. */
 static int value_in_range(Instance *inst, const char *function, const VariableInfo *v, unsigned int vr,
                           double value, const int64_t *exact)
 {

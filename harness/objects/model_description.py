@@ -115,7 +115,8 @@ def variables(derivation: Derivation) -> list[Variable]:
                         description="potential energy U"),
                Variable("E", "output", "continuous", initial="calculated", unit="J", description="total energy T + U")]
     result.append(Variable("solver", "parameter", "tunable", type="Enumeration", declared_type="Solver",
-                           start=SOLVERS.index("rk4") + 1, description="integration method of the Co-Simulation step; Model Exchange leaves the "
+                           start=SOLVERS.index("rk4") + 1,
+                           description="integration method of the Co-Simulation step; Model Exchange leaves the "
                                        "integration to the importer, where this and h, tol, taylor_order and "
                                        "gbs_columns have no effect"))
     if derivation.linear is not None:
