@@ -1,0 +1,86 @@
+"""CMake's configure step refuses a Python that cannot run the objects' generator, naming what is
+missing and what to do, instead of failing half-way through the build."""
+from __future__ import annotations
+
+import os
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parent.parent
+
+# Imported first by a Python that has it on PYTHONPATH: makes the named top-level modules unimportable,
+# as in a Python where they were never installed.
+BLOCKER = """
+import os, sys
+
+class _Blocked:
+    names = set(filter(None, os.environ.get("BLOCKED_MODULES", "").split(",")))
+
+    def find_spec(self, name, path=None, target=None):
+        if name.partition(".")[0] in self.names:
+            raise ModuleNotFoundError(f"No module named {name!r}", name=name)
+        return None
+
+sys.meta_path.insert(0, _Blocked())
+"""
+
+
+def python_without(tmp_path: Path, *modules: str) -> Path:
+    """An executable that runs this test's Python with `modules` unimportable."""
+    folder = tmp_path / "blocker"
+    folder.mkdir()
+    (folder / "sitecustomize.py").write_text(BLOCKER)
+    wrapper = tmp_path / "python-without"
+    wrapper.write_text(f'#!/bin/sh\nPYTHONPATH="{folder}" BLOCKED_MODULES="{",".join(modules)}" '
+                       f'exec "{sys.executable}" "$@"\n')
+    wrapper.chmod(0o755)
+    return wrapper
+
+
+def configure(tmp_path: Path, python: Path | str) -> subprocess.CompletedProcess:
+    return subprocess.run(["cmake", "-S", str(ROOT), "-B", str(tmp_path / "build"), "-DFMU_CROSS=OFF", "-DFMU_WASM=OFF",
+                           f"-DOBJECTS_PYTHON={python}"], capture_output=True, text=True)
+
+
+pytestmark = pytest.mark.skipif(shutil.which("cmake") is None, reason="cmake is not installed")
+
+
+def test_a_python_without_numpy_is_refused_at_configure(tmp_path):
+    python = python_without(tmp_path, "numpy")
+    # the wrapper really is such a Python: SymPy imports, NumPy does not
+    assert subprocess.run([str(python), "-c", "import sympy"]).returncode == 0
+    assert subprocess.run([str(python), "-c", "import numpy"], capture_output=True).returncode != 0
+    result = configure(tmp_path, python)
+    assert result.returncode != 0
+    message = " ".join(result.stderr.split())  # CMake wraps its messages
+    assert f"{python} cannot import numpy, which deriving the objects" in message, message
+    assert "./run demo" in message and "-DOBJECTS_PYTHON=" in message
+    assert not (tmp_path / "build" / "Makefile").exists()
+
+
+def test_every_missing_module_is_named_in_one_message(tmp_path):
+    result = configure(tmp_path, python_without(tmp_path, "numpy", "sympy"))
+    assert result.returncode != 0
+    message = " ".join(result.stderr.split())
+    assert "cannot import numpy, sympy, which deriving" in message, message
+    assert message.count("CMake Error") == 1
+
+
+def test_a_python_that_does_not_run_is_refused_too(tmp_path):
+    result = configure(tmp_path, tmp_path / "no-such-python")
+    assert result.returncode != 0
+    message = " ".join(result.stderr.split())
+    assert "no-such-python cannot run the generator's import check" in message, message
+    assert "-DOBJECTS_PYTHON=" in message
+
+
+def test_the_check_passes_with_the_projects_python():
+    """The probe itself, as CMake runs it: this Python has everything, so nothing is named."""
+    result = subprocess.run([sys.executable, str(ROOT / "tools" / "generator_imports.py"), "harness.objects.generate",
+                             "harness.objects.model_description_fmi3"], capture_output=True, text=True,
+                            env={k: v for k, v in os.environ.items() if k != "PYTHONPATH"})
+    assert (result.returncode, result.stdout) == (0, ""), result.stdout + result.stderr
