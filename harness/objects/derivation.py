@@ -184,20 +184,15 @@ def time_limit(seconds: float, message: str):
 
 
 def vanishes(expr, spec: ObjectSpec) -> bool:
-    """expr is zero for all values of its symbols, tested by evaluation at the start values and at
-    random values about them: an analytic expression that is not identically zero vanishes at such
-    points with probability zero. Where it cannot be evaluated: False."""
+    """expr is zero for all values of its symbols, tested by evaluation at the sample points: an
+    analytic expression that is not identically zero vanishes at such points with probability zero.
+    Where it cannot be evaluated: False."""
     expr = sp.sympify(expr)
     if expr == 0:
         return True
     symbols = sorted(expr.free_symbols, key=str)
-    start = _start_values(spec)
-    center = np.array([float(start.get(symbol, 0.5)) for symbol in symbols])
-    generator = np.random.default_rng(20261123)
     evaluate = sp.lambdify(symbols, [expr, *sp.Add.make_args(expr)], "math")
-    for point in range(ZERO_TEST_POINTS):
-        values = center if point == 0 else \
-            center * (1 + 0.3 * generator.uniform(-1, 1, center.size)) + 0.1 * generator.uniform(-1, 1, center.size)
+    for values in sample_points(spec, symbols):
         try:
             value, *terms = (complex(x) for x in evaluate(*values))
         except (ValueError, ZeroDivisionError, OverflowError, TypeError):
@@ -205,6 +200,19 @@ def vanishes(expr, spec: ObjectSpec) -> bool:
         if not abs(value) <= 1e-9 * max(1.0, sum(abs(x) for x in terms)):
             return False
     return True
+
+
+def sample_points(spec: ObjectSpec, symbols: list[sp.Symbol]) -> list[np.ndarray]:
+    """Values of `symbols` for zero tests by evaluation: the start values (0.5 for a symbol without one,
+    an input say), then random points about them."""
+    start = _start_values(spec)
+    center = np.array([float(start.get(symbol, 0.5)) for symbol in symbols])
+    generator = np.random.default_rng(20261123)
+    points = [center]
+    for _ in range(ZERO_TEST_POINTS - 1):
+        points.append(center * (1 + 0.3 * generator.uniform(-1, 1, center.size))
+                      + 0.1 * generator.uniform(-1, 1, center.size))
+    return points
 
 
 def _start_values(spec: ObjectSpec) -> dict[sp.Symbol, float]:

@@ -5,6 +5,9 @@ dense from 0 with the states first (coordinates, then velocities), their derivat
 parameters in file order (with the framework's d, h and tol where the file restates them, else
 appended), force inputs, point outputs, E_kin, E_pot, E; then the Integers: solver, model (when the
 object has a linear model), the counters of harness.fmi.methods.COUNTERS.
+
+ModelStructure lists what each output, state derivative and initial unknown depends on
+(harness.objects.dependencies), so that an importer sees which outputs feed through from inputs.
 """
 from __future__ import annotations
 
@@ -14,6 +17,7 @@ from dataclasses import dataclass
 from xml.sax.saxutils import quoteattr
 
 from harness.fmi.methods import COUNTERS, GBS_COLUMNS, METHODS, SOLVERS, TAYLOR_DEFAULT_ORDER, TAYLOR_ORDERS
+from harness.objects.dependencies import dependencies
 from harness.objects.derivation import Derivation
 from harness.objects.object_file import FRAMEWORK_PARAMETERS, ObjectFileError
 
@@ -218,6 +222,15 @@ def model_description(derivation: Derivation) -> str:
     return stamped(_document(derivation, variable_list, unit_table(derivation.spec, variable_list), TOKEN))
 
 
+def dependency_attribute(listed: set[str] | None, index: dict[str, int]) -> str:
+    """The FMI 2.0 dependencies attribute for the knowns `listed` by name (None: not known), as 1-based
+    indices. FMI 2.0 declares no variable for time, so an unknown that depends on time cannot list it:
+    it lists nothing, which the standard reads as "depends on every known", time among them."""
+    if listed is None or "time" in listed:
+        return ""
+    return ' dependencies="' + " ".join(str(k) for k in sorted(index[name] for name in listed)) + '"'
+
+
 def _document(derivation: Derivation, variable_list: list[Variable], units, guid: str) -> str:
     spec = derivation.spec
     sources = "".join(f'<File name="{f}"/>' for f in SOURCE_FILES)
@@ -271,13 +284,17 @@ def _document(derivation: Derivation, variable_list: list[Variable], units, guid
     derivatives = [k for k, v in enumerate(ordered, start=1) if v.derivative]
     calculated = [k for k, v in enumerate(ordered, start=1) if v.causality == "output" and v.initial == "calculated"]
 
-    def unknowns(indices):
-        return "".join(f'<Unknown index="{k}"/>' for k in indices)
+    index = {v.name: k for k, v in enumerate(ordered, start=1)}
+    running, initial = dependencies(derivation), dependencies(derivation, initial=True)
+
+    def unknowns(indices, needs):
+        return "".join(f'\n      <Unknown index="{k}"{dependency_attribute(needs.get(ordered[k - 1].name), index)}/>'
+                       for k in indices) + "\n    "
 
     lines += ['  </ModelVariables>', '  <ModelStructure>',
-              f'    <Outputs>{unknowns(outputs)}</Outputs>',
-              f'    <Derivatives>{unknowns(derivatives)}</Derivatives>',
-              f'    <InitialUnknowns>{unknowns(sorted(derivatives + calculated))}</InitialUnknowns>',
+              f'    <Outputs>{unknowns(outputs, running)}</Outputs>',
+              f'    <Derivatives>{unknowns(derivatives, running)}</Derivatives>',
+              f'    <InitialUnknowns>{unknowns(sorted(derivatives + calculated), initial)}</InitialUnknowns>',
               '  </ModelStructure>', '</fmiModelDescription>', '']
     return "\n".join(lines)
 

@@ -4,14 +4,11 @@ Both versions' binaries are compiled from the same C tables, so the FMI 3.0 desc
 FMI 2.0 one in FMI 3.0's terms: the same variables, value references, units, ranges and
 instantiation token (the FMI 2.0 GUID), Float64 for Real, UInt64 for the Integer outputs (the
 counters), Enumeration for enumerations, and the independent variable `time`, which FMI 3.0 declares
-and FMI 2.0 does not, at the next free value reference. An object adds the dependencies below; a
-hand-written model (the Spring) lists none, which the standard reads as "depends on every known".
+and FMI 2.0 does not, at the next free value reference.
 
-ModelStructure gives the dependencies of every output and state derivative on the knowns (the
-continuous states, the inputs and time), from the free symbols of the derivation's expressions;
-within a block of coupled coordinates of the mass matrix every acceleration is taken to depend on
-everything that any row of the block depends on (the inverse mixes them). Initial unknowns carry no
-dependency list (they depend on every known, as the standard says of an absent list).
+ModelStructure lists the dependencies of every output, state derivative and initial unknown as value
+references: an object's from its derivation (harness.objects.dependencies), time included, which
+FMI 2.0 cannot name; a hand-written model's (the Spring's) translated from its FMI 2.0 indices.
 """
 from __future__ import annotations
 
@@ -21,10 +18,8 @@ import xml.etree.ElementTree as ET
 from pathlib import Path
 from xml.sax.saxutils import quoteattr
 
-import sympy as sp
-
-from harness.fmi.methods import COUNTER_NAMES
-from harness.objects.derivation import Derivation, vanishes
+from harness.objects.dependencies import dependencies
+from harness.objects.derivation import Derivation
 from harness.objects.model_description import model_description
 
 # The FMI 2.0 <ScalarVariable> attributes FMI 3.0 keeps as they are, in this order.
@@ -32,68 +27,15 @@ _KEPT = ("name", "valueReference", "causality", "variability", "initial", "descr
 _TYPED = ("declaredType", "unit", "start", "min", "max")
 
 
-def dependencies(derivation: Derivation) -> dict[str, set[str]]:
-    """For each output and state derivative: the names of the knowns it depends on."""
-    spec = derivation.spec
-    q, v = list(spec.q), list(spec.v)
-    known = {symbol: str(symbol) for symbol in q + v + list(derivation.inputs)}
-    known[spec.time] = "time"
-
-    def of(*expressions) -> set[str]:
-        found: set[str] = set()
-        for expression in expressions:
-            found |= {known[s] for s in sp.sympify(expression).free_symbols if s in known}
-        return found
-
-    result: dict[str, set[str]] = {}
-    for c, velocity in zip(spec.coordinates, v):
-        result[f"der({c.name})"] = {str(velocity)}
-    for block in _coupled_blocks(derivation):
-        needs = of(*(derivation.M[i, j] for i in block for j in range(derivation.n)),
-                   *(derivation.f[i] for i in block), *(derivation.Q[i] for i in block))
-        needs |= {str(v[i]) for i in block}  # damping acts on each coordinate's own velocity
-        for i in block:
-            result[f"der({spec.coordinates[i].velocity})"] = needs
-    for c, coordinate, velocity in zip(spec.coordinates, q, v):
-        result[c.name] = {str(coordinate)}
-        result[c.velocity] = {str(velocity)}
-    for point, position, velocity in zip(spec.points, derivation.positions, derivation.velocities):
-        for kind, name in point.outputs.items():
-            axis = "xyz".index(kind[-1])
-            result[name] = of(velocity[axis] if kind.startswith("v_") else position[axis])
-    result["E_kin"], result["E_pot"] = of(derivation.T), of(derivation.U)
-    result["E"] = result["E_kin"] | result["E_pot"]
-    for counter in COUNTER_NAMES:
-        result[counter] = set()
-    return result
-
-
-def _coupled_blocks(derivation: Derivation) -> list[list[int]]:
-    """Groups of coordinates joined by non-zero off-diagonal entries of the mass matrix."""
-    M, n = derivation.M, derivation.n
-    group = list(range(n))
-
-    def root(i: int) -> int:
-        while group[i] != i:
-            i = group[i]
-        return i
-    for i in range(n):
-        for j in range(i + 1, n):
-            if not vanishes(M[i, j], derivation.spec):
-                group[root(j)] = root(i)
-    blocks: dict[int, list[int]] = {}
-    for i in range(n):
-        blocks.setdefault(root(i), []).append(i)
-    return list(blocks.values())
-
-
 def model_description_fmi3(derivation: Derivation) -> str:
-    return from_fmi2(model_description(derivation), dependencies(derivation))
+    return from_fmi2(model_description(derivation), dependencies(derivation), dependencies(derivation, initial=True))
 
 
-def from_fmi2(fmi2_text: str, needs: dict[str, set[str]] | None = None) -> str:
-    """The FMI 3.0 description of the FMU that `fmi2_text` describes; `needs` gives, by name, the
-    knowns each output and state derivative depends on (None: not listed)."""
+def from_fmi2(fmi2_text: str, needs: dict[str, set[str]] | None = None,
+              initial_needs: dict[str, set[str]] | None = None) -> str:
+    """The FMI 3.0 description of the FMU that `fmi2_text` describes. `needs` and `initial_needs` give,
+    by name, the knowns ("time" for time) each output and state derivative depends on, and each initial
+    unknown; where they are None, the FMI 2.0 description's own dependency lists are translated."""
     root = ET.fromstring(fmi2_text)
     cs, me = root.find("CoSimulation"), root.find("ModelExchange")
     identifier = (cs if cs is not None else me).get("modelIdentifier")
@@ -148,18 +90,23 @@ def from_fmi2(fmi2_text: str, needs: dict[str, set[str]] | None = None) -> str:
     lines += ['  </ModelVariables>', '  <ModelStructure>']
     structure = root.find("ModelStructure")
 
-    def unknowns(section: str, element: str, with_dependencies: bool = True) -> list[str]:
+    def unknowns(section: str, element: str, given: dict[str, set[str]] | None) -> list[str]:
         found = []
         listing = structure.find(section)
         for unknown in listing if listing is not None else []:
             v = by_index[int(unknown.get("index"))]
-            listed = ""
-            if with_dependencies and needs is not None:
-                listed = ' dependencies="' + " ".join(str(r) for r in sorted(references[n] for n in needs[v.get("name")])) + '"'
+            if given is not None:
+                names = given[v.get("name")]
+            elif unknown.get("dependencies") is not None:
+                names = {by_index[int(k)].get("name") for k in unknown.get("dependencies").split()}
+            else:
+                names = None
+            listed = "" if names is None else \
+                ' dependencies="' + " ".join(str(r) for r in sorted(references[n] for n in names)) + '"'
             found.append(f'    <{element} valueReference="{v.get("valueReference")}"{listed}/>')
         return found
-    lines += unknowns("Outputs", "Output") + unknowns("Derivatives", "ContinuousStateDerivative")
-    lines += unknowns("InitialUnknowns", "InitialUnknown", False)
+    lines += unknowns("Outputs", "Output", needs) + unknowns("Derivatives", "ContinuousStateDerivative", needs)
+    lines += unknowns("InitialUnknowns", "InitialUnknown", initial_needs)
     lines += ['  </ModelStructure>', '</fmiModelDescription>', '']
     return "\n".join(lines)
 
