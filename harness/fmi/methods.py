@@ -3,7 +3,7 @@ enumeration: item values 1, 2, ...) and the counters the FMUs report. The genera
 descriptions take them from here."""
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 
 @dataclass(frozen=True)
@@ -16,6 +16,17 @@ class Method:
     implicit: bool = False   # solved per step by Newton's method with the exact Jacobian
     needs_constant_mass: bool = False  # only for objects whose mass matrix is constant
     adaptive: bool = False   # its step (and order) controlled by tol > 0 alone
+    family: str = field(kw_only=True)  # one of FAMILIES: the charts draw each family in its own panels
+
+
+# The methods' families, in the order the charts draw them: (key, what a chart calls it)
+FAMILIES = (
+    ("runge-kutta", "one-step Runge-Kutta"),
+    ("adams-bashforth", "Adams-Bashforth (multistep)"),
+    ("adams-bashforth-moulton", "Adams-Bashforth-Moulton (multistep)"),
+    ("symmetric", "symmetric (implicit, Stormer-Verlet)"),
+    ("series", "Taylor and extrapolation"),
+)
 
 
 TAYLOR_ORDERS = (2, 30)    # the range of taylor_order (the generated physics.h sizes its series for the last)
@@ -28,40 +39,44 @@ GBS_COLUMNS = 8
 GBS_SMALLEST_TOL = 1e-15
 
 METHODS = (
-    Method("euler", 1, True, "explicit Euler, order 1"),
-    Method("midpoint", 2, True, "improved polygon (explicit midpoint), order 2"),
-    Method("heun", 2, True, "Heun, order 2"),
-    Method("rk3", 3, True, "Runge-Kutta 3 (thesis 4.38, corrected)"),
-    Method("rk4", 4, True, "classic Runge-Kutta 4"),
-    Method("rkf45", 4, False, "Runge-Kutta-Fehlberg 4(5) with step-size control on tol", adaptive=True),
-    Method("nystrom5", 5, True, "Kutta-Nystrom, order 5 (thesis 4.36, corrected)"),
-    Method("ab2", 2, True, "Adams-Bashforth 2-step"),
-    Method("ab3", 3, True, "Adams-Bashforth 3-step"),
-    Method("ab4", 4, True, "Adams-Bashforth 4-step"),
-    Method("ab5", 5, True, "Adams-Bashforth 5-step"),
-    Method("ab6", 6, True, "Adams-Bashforth 6-step (nystrom5 start)"),
+    Method("euler", 1, True, "explicit Euler, order 1", family="runge-kutta"),
+    Method("midpoint", 2, True, "improved polygon (explicit midpoint), order 2", family="runge-kutta"),
+    Method("heun", 2, True, "Heun, order 2", family="runge-kutta"),
+    Method("rk3", 3, True, "Runge-Kutta 3 (thesis 4.38, corrected)", family="runge-kutta"),
+    Method("rk4", 4, True, "classic Runge-Kutta 4", family="runge-kutta"),
+    Method("rkf45", 4, False, "Runge-Kutta-Fehlberg 4(5) with step-size control on tol", adaptive=True,
+           family="runge-kutta"),
+    Method("nystrom5", 5, True, "Kutta-Nystrom, order 5 (thesis 4.36, corrected)", family="runge-kutta"),
+    Method("ab2", 2, True, "Adams-Bashforth 2-step", family="adams-bashforth"),
+    Method("ab3", 3, True, "Adams-Bashforth 3-step", family="adams-bashforth"),
+    Method("ab4", 4, True, "Adams-Bashforth 4-step", family="adams-bashforth"),
+    Method("ab5", 5, True, "Adams-Bashforth 5-step", family="adams-bashforth"),
+    Method("ab6", 6, True, "Adams-Bashforth 6-step (nystrom5 start)", family="adams-bashforth"),
     Method("implicit_midpoint", 2, True, "implicit midpoint rule, symmetric, order 2 (Newton per step)",
-           symmetric=True, implicit=True),
+           symmetric=True, implicit=True, family="symmetric"),
     Method("gauss_legendre4", 4, True, "2-stage Gauss-Legendre, symmetric, order 4 (Newton per step)",
-           symmetric=True, implicit=True),
+           symmetric=True, implicit=True, family="symmetric"),
     Method("stormer_verlet", 2, True, "Stormer-Verlet, symmetric, order 2 (objects with a constant mass matrix)",
-           symmetric=True, needs_constant_mass=True),
+           symmetric=True, needs_constant_mass=True, family="symmetric"),
     # appended: the items before keep their values
-    Method("abm2", 2, True, "Adams-Bashforth-Moulton 2, predictor-corrector (PECE: ab2, trapezoid)"),
-    Method("abm3", 3, True, "Adams-Bashforth-Moulton 3, predictor-corrector (PECE)"),
-    Method("abm4", 4, True, "Adams-Bashforth-Moulton 4, predictor-corrector (PECE)"),
-    Method("abm5", 5, True, "Adams-Bashforth-Moulton 5, predictor-corrector (PECE, nystrom5 start)"),
-    Method("abm6", 6, True, "Adams-Bashforth-Moulton 6, predictor-corrector (PECE, nystrom5 start)"),
+    Method("abm2", 2, True, "Adams-Bashforth-Moulton 2, predictor-corrector (PECE: ab2, trapezoid)",
+           family="adams-bashforth-moulton"),
+    Method("abm3", 3, True, "Adams-Bashforth-Moulton 3, predictor-corrector (PECE)", family="adams-bashforth-moulton"),
+    Method("abm4", 4, True, "Adams-Bashforth-Moulton 4, predictor-corrector (PECE)", family="adams-bashforth-moulton"),
+    Method("abm5", 5, True, "Adams-Bashforth-Moulton 5, predictor-corrector (PECE, nystrom5 start)",
+           family="adams-bashforth-moulton"),
+    Method("abm6", 6, True, "Adams-Bashforth-Moulton 6, predictor-corrector (PECE, nystrom5 start)",
+           family="adams-bashforth-moulton"),
     Method("trapezoid", 2, True, "implicit trapezoid rule (thesis 4.9), symmetric, A-stable, order 2 (Newton per step)",
-           symmetric=True, implicit=True),
+           symmetric=True, implicit=True, family="symmetric"),
     Method("taylor", TAYLOR_DEFAULT_ORDER, False,
            f"Taylor method of order taylor_order ({TAYLOR_ORDERS[0]} to {TAYLOR_ORDERS[1]}), its coefficients by Taylor "
            "arithmetic on the generated equations; fixed step h with tol = 0, else the step from its last "
-           "coefficients (after Jorba and Zou, the radius of convergence from the last four)"),
+           "coefficients (after Jorba and Zou, the radius of convergence from the last four)", family="series"),
     Method("gbs", 2 * GBS_COLUMNS, False,
            f"Gragg-Bulirsch-Stoer extrapolation: the modified midpoint rule with 2, 4, ..., 2 k substeps extrapolated "
            f"in h^2 (order 2 k, k = 2 ... gbs_columns <= {GBS_COLUMNS}); order and step chosen for tol, or column "
-           f"gbs_columns with the fixed step h at tol = 0", adaptive=True),
+           f"gbs_columns with the fixed step h at tol = 0", adaptive=True, family="series"),
 )
 SOLVERS = tuple(m.name for m in METHODS)
 FIXED_STEP = tuple(m.name for m in METHODS if m.fixed_step)

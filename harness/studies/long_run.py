@@ -208,3 +208,13 @@ def write_csv(series: list[Series], path: Path) -> None:
 
 def read_csv(path: Path) -> list[SeriesRow]:
     return read_records(path, SeriesRow)
+
+
+def series_from_rows(rows: list[SeriesRow]) -> list[Series]:
+    """The series a CSV holds, for drawing the chart again without running them."""
+    grouped: dict[tuple[str, str], list[SeriesRow]] = {}
+    for row in rows:
+        grouped.setdefault((row.object, row.method), []).append(row)
+    return [Series(first.object, first.method, first.h, first.tol, first.cost_per_period, mine[-1].periods,
+                   mine[-1].energy_error, first.slope, [r.periods for r in mine], [r.energy_error for r in mine])
+            for mine in grouped.values() for first in [mine[0]]]
