@@ -17,6 +17,7 @@ from matplotlib.lines import Line2D
 
 from harness.fmi.fmus import PROJECT_ROOT
 from harness.fmi.methods import FAMILIES, METHODS
+from harness.scene.report import Report, Section, interactive_chart, write_index
 from harness.studies import coupling, long_run, work_precision
 from harness.studies.charts import (COSTS, MOST_LINES, coupling_figure, long_run_figure, method_families, redraw,
                                     stability_figures, svg_of, work_precision_figure)
@@ -172,17 +173,41 @@ def test_redrawn_from_the_csv_files_keeping_them(tmp_path):
         assert (tmp_path / f"{stem}.png").stat().st_size > 10_000
 
 
-def test_a_browser_shows_a_tooltip_over_every_point(tmp_path):
-    """Each point's centre, in Chromium, lies within an element that has a tooltip (nothing drawn over it)."""
+def hover(url: str) -> dict:
+    """What tests/browser/hover.mjs finds in Chromium: per document, its points and those whose centre
+    shows no tooltip; and every request the page made."""
     node, chromium = shutil.which("node"), Path("/usr/bin/chromium")
     driver = PROJECT_ROOT / "tests" / "browser" / "hover.mjs"
     if node is None or not chromium.exists() or not (driver.parent / "node_modules" / "playwright-core").is_dir():
         pytest.skip("needs Node, Chromium and playwright-core in tests/browser (./run test installs them)")
+    result = subprocess.run([node, str(driver), url], capture_output=True, text=True, timeout=120, check=True)
+    return json.loads(result.stdout)
+
+
+def test_a_browser_shows_a_tooltip_over_every_point(tmp_path):
+    """Each point's centre, in Chromium, lies within an element that has a tooltip (nothing drawn over it)."""
     shutil.copy(CHARTS / "work-precision.csv", tmp_path)
     redraw(tmp_path)
-    result = subprocess.run([node, str(driver), (tmp_path / "work-precision.svg").as_uri()], capture_output=True,
-                            text=True, timeout=120, check=True)
-    seen = json.loads(result.stdout)
-    assert seen["requests"] == [(tmp_path / "work-precision.svg").as_uri()]
+    url = (tmp_path / "work-precision.svg").as_uri()
+    seen = hover(url)
+    assert seen["requests"] == [url]
     points = [p for p in work_precision.read_csv(tmp_path / "work-precision.csv") if math.isfinite(p.error)]
-    assert seen["points"] == len(points) and seen["covered"] == [], seen["covered"][:5]
+    assert [(f["points"], f["covered"]) for f in seen["frames"]] == [(len(points), [])]
+
+
+def test_the_report_shows_the_interactive_chart_offline(tmp_path):
+    """The demo report's chart: the SVG in the page, its tooltips reachable, only local files loaded; the
+    PNG inside it for a browser without SVG."""
+    shutil.copy(CHARTS / "coupling.csv", tmp_path)
+    redraw(tmp_path)
+    page = write_index(Report([Section("Charts", "drawn", True, interactive_chart("coupling", "coupling"))]),
+                       tmp_path, 0.0)
+    text = page.read_text()
+    assert '<object class="chart" data="coupling.svg" type="image/svg+xml"><img src="coupling.png"' in text
+    assert "http" not in text
+    seen = hover(page.as_uri())
+    assert all(url.startswith("file://") for url in seen["requests"]), seen["requests"]
+    assert (tmp_path / "coupling.svg").as_uri() in seen["requests"]
+    charts = [f for f in seen["frames"] if f["url"].endswith("coupling.svg")]
+    points = [p for p in coupling.read_csv(tmp_path / "coupling.csv") if math.isfinite(p.error)]
+    assert [(f["points"], f["covered"]) for f in charts] == [(3 * len(points), [])]

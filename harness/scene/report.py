@@ -147,9 +147,16 @@ def validation_section() -> Section:
                    _table(["FMU", "check", "result", "detail"], rows))
 
 
+def interactive_chart(stem: str, alt: str) -> str:
+    """A chart as its SVG, whose points name their method and setting when hovered (a <title> each: no
+    script, nothing from the network), with the PNG inside for a browser that shows no SVG."""
+    return (f'<p><object class="chart" data="{html.escape(stem)}.svg" type="image/svg+xml">'
+            f'<img src="{html.escape(stem)}.png" alt="{html.escape(alt)}"></object></p>')
+
+
 def charts_section(out: Path) -> Section:
     from harness.studies.charts import stability_charts, work_precision_chart
-    from harness.studies.stability import atlas, cases, method_tables, sharp_deviations
+    from harness.studies.stability import atlas, atlas_tables, cases, sharp_deviations
     from harness.studies.stability import write_csv as write_limits
     from harness.studies.work_precision import PENDULUMS, pareto_front, settings, work_precision
     from harness.studies.work_precision import write_csv as write_points
@@ -159,14 +166,19 @@ def charts_section(out: Path) -> Section:
     fmu_dir = build_dir() / "fmus"
     limits = atlas(fmu_dir, quick=True)
     write_limits(limits, out / "stability.csv")
-    stability_charts(limits, cases(fmu_dir, quick=True), method_tables(), out)
+    # the regions of the methods as the atlas measured them (taylor and gbs at its orders)
+    stability_charts(limits, cases(fmu_dir, quick=True), atlas_tables(), out)
     worst = max(abs(deviation) for _, deviation in sharp_deviations(limits, cases(fmu_dir, quick=True)))
     fronts = [[name, ", ".join(f"{p.method} ({p.evaluations} -> {p.error:.0e} m)"
                                for p in pareto_front([q for q in points if q.object == name])[-4:])]
               for name in PENDULUMS]
-    body = (_image("work-precision.png", "work-precision") + _table(["object", "cheapest most accurate points"],
-                                                                     fronts)
-            + _image("stability-regions.png", "stability regions"))
+    body = ("<p>A panel per object and method family, the other families grey behind it and the Pareto front of "
+            "all methods in black. Hover a point for its method, its setting, its error and its cost.</p>"
+            + interactive_chart("work-precision", "work-precision: error against evaluations")
+            + _table(["object", "cheapest most accurate points"], fronts)
+            + interactive_chart("work-precision-time", "work-precision: error against run time")
+            + interactive_chart("stability-regions", "stability regions")
+            + interactive_chart("stability-limits", "stability limits"))
     return Section("Speed against accuracy (quick settings)",
                    f"{len(points)} work-precision points; {len(limits)} stability limits, those with a sharp "
                    f"prediction within {worst:.1%} of it", worst < 0.05, body)
@@ -174,7 +186,8 @@ def charts_section(out: Path) -> Section:
 
 STYLE = """body{font-family:sans-serif;max-width:1200px;margin:2em auto;color:#222}
 table{border-collapse:collapse;margin:1em 0;font-size:13px}td,th{border:1px solid #ccc;padding:3px 8px}
-th{background:#f0f0f0}img{max-width:100%}.pass{color:#1a7f37}.fail{color:#c62828}h2{margin-top:2em}"""
+th{background:#f0f0f0}img{max-width:100%}
+object.chart{width:100%;max-width:1000px}.pass{color:#1a7f37}.fail{color:#c62828}h2{margin-top:2em}"""
 
 
 def write_index(report: Report, out: Path, seconds: float) -> Path:
