@@ -11,6 +11,7 @@ import pytest
 from harness.cli import main
 from harness.cosim.master import MasterOptions, run_system
 from harness.cosim.system import load_system
+from harness.errors import HarnessError
 from harness.fmi.fmus import PROJECT_ROOT
 
 SCENES = PROJECT_ROOT / "scenes"
@@ -74,3 +75,79 @@ def test_a_bad_view_annotation_is_refused_by_name(fmu_paths, tmp_path, capsys, e
             members.writestr(name, data)
     assert main(["run", str(edited), "--out", str(tmp_path / "run.csv")]) == 2
     assert message in capsys.readouterr().err
+
+
+# Where other importers read the step, by the names their sources use (not this project's constants):
+# OMSimulator (src/OMSimulatorLib: System.cpp reads the system's first annotation, SystemWC.cpp its
+# FixedStepMaster) and libcosim (src/cosim/ssp/ssp_parser.cpp: DefaultExperiment's annotation).
+# Both compare qualified names, prefixes included.
+NAMESPACES = {"ssd": "http://ssp-standard.org/SSP1/SystemStructureDescription",
+              "ssc": "http://ssp-standard.org/SSP1/SystemStructureCommon",
+              "oms": "https://raw.githubusercontent.com/OpenModelica/OMSimulator/master/schema/oms.xsd",
+              "osp": "http://opensimulationplatform.com/SSP/OSPAnnotations"}
+
+
+def exported_with(tmp_path, step: float, stop: float):
+    """The coupled pendulums exported with another step and stop time than the scene's (0.01 s, 10 s)."""
+    from harness.cosim.ssp_export import write_ssp
+    archive = tmp_path / "coupled.ssp"
+    with load_system(SCENES / "coupled_pendulums.json") as system:
+        system.step, system.stop = step, stop
+        write_ssp(system, archive)
+    with zipfile.ZipFile(archive) as members:
+        files = {name: members.read(name) for name in members.namelist()}
+    return archive, files
+
+
+def rezipped(path, files: dict[str, bytes], ssd: bytes):
+    with zipfile.ZipFile(path, "w") as members:
+        for name, data in {**files, "SystemStructure.ssd": ssd}.items():
+            members.writestr(name, data)
+    return path
+
+
+def test_the_step_and_stop_time_are_where_other_importers_read_them(fmu_paths, tmp_path):
+    from lxml import etree
+    archive, files = exported_with(tmp_path, 0.004, 3.0)
+    root = etree.fromstring(files["SystemStructure.ssd"])
+    first = root.find("ssd:System/ssd:Annotations", NAMESPACES)[0]
+    assert (first.prefix, etree.QName(first).localname, first.get("type")) == ("ssc", "Annotation", "org.openmodelica")
+    master = first.find("oms:Annotations/oms:SimulationInformation/oms:FixedStepMaster", NAMESPACES)
+    assert master.prefix == "oms" and master.get("description") == "oms-ma"
+    assert float(master.get("stepSize")) == 0.004
+    experiment = root.find("ssd:DefaultExperiment", NAMESPACES)
+    assert float(experiment.get("startTime")) == 0.0 and float(experiment.get("stopTime")) == 3.0
+    osp = experiment.find("ssd:Annotations/ssc:Annotation[@type='com.opensimulationplatform']", NAMESPACES)
+    algorithm = osp.find("osp:Algorithm", NAMESPACES)
+    # libcosim takes every child of osp:Algorithm (attributes too) for an algorithm, and knows this one
+    assert algorithm.prefix == "osp" and not algorithm.attrib
+    assert [(c.prefix, etree.QName(c).localname) for c in algorithm] == [("osp", "FixedStepAlgorithm")]
+    assert float(algorithm[0].get("baseStepSize")) == 0.004
+    own = root.find("ssd:System/ssd:Annotations/ssc:Annotation[@type='org.pendulum-harness.step']/Step", NAMESPACES)
+    assert float(own.get("stepSize")) == 0.004
+    with load_system(archive) as exported:  # read back, through fmpy's SSP 1.0 schema check
+        assert (exported.step, exported.stop) == (0.004, 3.0)
+
+
+def test_the_harness_annotation_decides_and_the_others_stand_in_for_it(fmu_paths, tmp_path):
+    from lxml import etree
+    archive, files = exported_with(tmp_path, 0.004, 3.0)
+    root = etree.fromstring(files["SystemStructure.ssd"])
+    own = root.find("ssd:System/ssd:Annotations/ssc:Annotation[@type='org.pendulum-harness.step']", NAMESPACES)
+    own[0].set("stepSize", "0.005")
+    with load_system(rezipped(tmp_path / "own.ssp", files, etree.tostring(root))) as system:
+        assert system.step == 0.005
+    own.getparent().remove(own)
+    algorithm = root.find("ssd:DefaultExperiment/ssd:Annotations/ssc:Annotation/osp:Algorithm", NAMESPACES)
+    algorithm[0].set("baseStepSize", "0.002")
+    with load_system(rezipped(tmp_path / "osp.ssp", files, etree.tostring(root))) as system:
+        assert system.step == 0.002
+    experiment = root.find("ssd:DefaultExperiment", NAMESPACES)
+    experiment.remove(experiment[0])
+    with load_system(rezipped(tmp_path / "oms.ssp", files, etree.tostring(root))) as system:
+        assert system.step == 0.004
+    master = root.find("ssd:System/ssd:Annotations/ssc:Annotation/oms:Annotations/oms:SimulationInformation/"
+                       "oms:FixedStepMaster", NAMESPACES)
+    master.set("stepSize", "fast")
+    with pytest.raises(HarnessError, match="FixedStepMaster stepSize = 'fast' is not a number"):
+        load_system(rezipped(tmp_path / "bad.ssp", files, etree.tostring(root)))

@@ -101,6 +101,25 @@ def test_libcosim_agrees_with_the_harness(archives, harness_rows, scene):
     assert np.max(np.abs(rows - expected)) < 1e-12
 
 
+def test_libcosim_takes_the_step_from_an_exported_file(fmu_paths, tmp_path):
+    """Given no step, libcosim runs an exported scene at the step its DefaultExperiment annotation names
+    (0.004 s here, not the scenes' 0.01 s): its rows are the harness's at that step. (ecos cannot: its
+    SSP loader reads no step, and ecospy asks for one.)"""
+    pytest.importorskip("libcosimpy")
+    from harness.cosim.ssp_export import write_ssp
+    archive, step, steps = tmp_path / "coupled.ssp", 0.004, 250
+    with load_system(PROJECT_ROOT / "scenes" / "coupled_pendulums.json") as system:
+        system.step = step
+        write_ssp(system, archive)
+    with load_system(archive) as system:
+        recorded, starts = recorded_points(system), state_starts(system)
+        result = run_system(system, MasterOptions(stop=step * steps, step=step, algorithm="jacobi", extrapolation="hold"))
+        expected = np.column_stack([result[n] for n in recorded])[1:]
+    rows = run_peer("run_libcosim.py", str(archive), "file", str(steps), json.dumps(starts), *recorded)
+    assert rows.shape == expected.shape
+    assert np.max(np.abs(rows - expected)) < 1e-12
+
+
 @pytest.mark.parametrize("scene", SCENES)
 def test_ecos_agrees_with_the_harness(archives, harness_rows, scene):
     pytest.importorskip("ecospy")

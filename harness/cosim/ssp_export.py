@@ -10,6 +10,13 @@ system uses under `resources/`.
   scene is looked at (the camera, the traces, the description), for which SSP 1.0 has no element, go
   into annotations of the system ("org.pendulum-harness.step", "org.pendulum-harness.bonds" and
   "org.pendulum-harness.view"), which `load_ssp` reads back and other importers ignore.
+* The step also goes where other importers read one, so that they run the scene at its step:
+  OMSimulator reads the first annotation of the system, "org.openmodelica", for
+  oms:Annotations/oms:SimulationInformation/oms:FixedStepMaster (description "oms-ma", its Jacobi
+  master, and stepSize); libcosim reads DefaultExperiment's annotation "com.opensimulationplatform"
+  for osp:Algorithm/osp:FixedStepAlgorithm baseStepSize (OMSimulator's src/OMSimulatorLib/System.cpp
+  and SystemWC.cpp, libcosim's src/cosim/ssp/ssp_parser.cpp). Both match the prefixes (oms:, osp:)
+  as written, so those are the prefixes used. ecos reads no step from an SSP.
 """
 from __future__ import annotations
 
@@ -29,6 +36,10 @@ BONDS_ANNOTATION = "org.pendulum-harness.bonds"
 VIEW_ANNOTATION = "org.pendulum-harness.view"
 VIEW_ATTRIBUTES = {"scale": "scale", "frame_rate": "frameRate", "layout": "layout"}  # camera key -> attribute
 STEP_ANNOTATION = "org.pendulum-harness.step"
+OMS_ANNOTATION = "org.openmodelica"
+OMS_NS = "https://raw.githubusercontent.com/OpenModelica/OMSimulator/master/schema/oms.xsd"
+OSP_ANNOTATION = "com.opensimulationplatform"
+OSP_NS = "http://opensimulationplatform.com/SSP/OSPAnnotations"
 FMU_TYPE = "application/x-fmu-sharedlibrary"
 
 
@@ -61,6 +72,8 @@ def system_structure(system: System, sources: dict[str, str]) -> bytes:
     ET.register_namespace("ssd", SSD_NS)
     ET.register_namespace("ssc", SSC_NS)
     ET.register_namespace("ssv", SSV_NS)
+    ET.register_namespace("oms", OMS_NS)
+    ET.register_namespace("osp", OSP_NS)
     root = ET.Element(_tag(SSD_NS, "SystemStructureDescription"), version="1.0", name=system.name)
     element = ET.SubElement(root, _tag(SSD_NS, "System"), name=system.name)
     elements = ET.SubElement(element, _tag(SSD_NS, "Elements"))
@@ -97,6 +110,12 @@ def system_structure(system: System, sources: dict[str, str]) -> bytes:
     if system.bonds or system.step is not None or system.camera or system.traces or system.description:
         annotations = ET.SubElement(element, _tag(SSD_NS, "Annotations"))  # holds ssc:Annotation elements
         if system.step is not None:
+            # first: OMSimulator looks at the system's first annotation only
+            information = ET.SubElement(ET.SubElement(ET.SubElement(annotations, _tag(SSC_NS, "Annotation"),
+                                                                    type=OMS_ANNOTATION), _tag(OMS_NS, "Annotations")),
+                                        _tag(OMS_NS, "SimulationInformation"))
+            ET.SubElement(information, _tag(OMS_NS, "FixedStepMaster"), description="oms-ma",
+                          stepSize=repr(float(system.step)))
             ET.SubElement(annotations, _tag(SSC_NS, "Annotation"), type=STEP_ANNOTATION).append(
                 ET.Element("Step", stepSize=repr(float(system.step))))
         if system.bonds:
@@ -117,8 +136,15 @@ def system_structure(system: System, sources: dict[str, str]) -> bytes:
             for component, pairs in system.traces.items():
                 for x, y in pairs:
                     ET.SubElement(holder, "Trace", component=component, x=x, y=y)
-    if system.stop is not None:
-        ET.SubElement(root, _tag(SSD_NS, "DefaultExperiment"), startTime="0", stopTime=repr(float(system.stop)))
+    if system.stop is not None or system.step is not None:
+        experiment = ET.SubElement(root, _tag(SSD_NS, "DefaultExperiment"), startTime="0")
+        if system.stop is not None:
+            experiment.set("stopTime", repr(float(system.stop)))
+        if system.step is not None:
+            annotation = ET.SubElement(ET.SubElement(experiment, _tag(SSD_NS, "Annotations")),
+                                       _tag(SSC_NS, "Annotation"), type=OSP_ANNOTATION)
+            ET.SubElement(ET.SubElement(annotation, _tag(OSP_NS, "Algorithm")), _tag(OSP_NS, "FixedStepAlgorithm"),
+                          baseStepSize=repr(float(system.step)))
     ET.indent(root)
     return b'<?xml version="1.0" encoding="UTF-8"?>\n' + ET.tostring(root, encoding="utf-8")
 

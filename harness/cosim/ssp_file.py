@@ -175,12 +175,17 @@ def _bonds(root: ET.Element, what: str) -> list[Bond]:
 
 
 def _annotated_step(root: ET.Element, what: str) -> float | None:
-    """The communication step a system exported by this harness carries in an annotation."""
-    from harness.cosim.ssp_export import STEP_ANNOTATION
-    for annotation in root.iter():
-        if annotation.tag.endswith("}Annotation") and annotation.get("type") == STEP_ANNOTATION:
-            for step in annotation:
-                return _number(step.get("stepSize"), f"{what}: annotation {STEP_ANNOTATION} stepSize")
+    """The communication step an annotation gives: this harness's own, which decides, else libcosim's
+    or OMSimulator's (ssp_export writes all three), so that an SSP made for those runs at its step here."""
+    from harness.cosim.ssp_export import OMS_ANNOTATION, OSP_ANNOTATION, STEP_ANNOTATION
+    for kind, name, attribute in ((STEP_ANNOTATION, "Step", "stepSize"), (OSP_ANNOTATION, "FixedStepAlgorithm",
+                                  "baseStepSize"), (OMS_ANNOTATION, "FixedStepMaster", "stepSize")):
+        for annotation in root.iter():
+            if not (annotation.tag.endswith("}Annotation") and annotation.get("type") == kind):
+                continue
+            for element in annotation.iter():
+                if element.tag.rpartition("}")[2] == name:
+                    return _number(element.get(attribute), f"{what}: annotation {kind} {name} {attribute}")
     return None
 
 
