@@ -78,9 +78,10 @@ def test_a_bad_view_annotation_is_refused_by_name(fmu_paths, tmp_path, capsys, e
 
 
 # Where other importers read the step, by the names their sources use (not this project's constants):
-# OMSimulator (src/OMSimulatorLib: System.cpp reads the system's first annotation, SystemWC.cpp its
-# FixedStepMaster) and libcosim (src/cosim/ssp/ssp_parser.cpp: DefaultExperiment's annotation).
-# Both compare qualified names, prefixes included.
+# OMSimulator 2.x (src/OMSimulatorLib: System.cpp reads the system's first annotation, SystemWC.cpp its
+# FixedStepMaster), OMSimulator 3.0 (src/OMSimulatorPython/utils.py: SimulationInformation's attributes
+# are a solver, a component's names the one it runs under) and libcosim (src/cosim/ssp/ssp_parser.cpp:
+# DefaultExperiment's annotation). The C++ readers compare qualified names, prefixes included.
 NAMESPACES = {"ssd": "http://ssp-standard.org/SSP1/SystemStructureDescription",
               "ssc": "http://ssp-standard.org/SSP1/SystemStructureCommon",
               "oms": "https://raw.githubusercontent.com/OpenModelica/OMSimulator/master/schema/oms.xsd",
@@ -112,9 +113,15 @@ def test_the_step_and_stop_time_are_where_other_importers_read_them(fmu_paths, t
     root = etree.fromstring(files["SystemStructure.ssd"])
     first = root.find("ssd:System/ssd:Annotations", NAMESPACES)[0]
     assert (first.prefix, etree.QName(first).localname, first.get("type")) == ("ssc", "Annotation", "org.openmodelica")
-    master = first.find("oms:Annotations/oms:SimulationInformation/oms:FixedStepMaster", NAMESPACES)
+    information = first.find("oms:Annotations/oms:SimulationInformation", NAMESPACES)
+    master = information.find("oms:FixedStepMaster", NAMESPACES)
     assert master.prefix == "oms" and master.get("description") == "oms-ma"
     assert float(master.get("stepSize")) == 0.004
+    assert information.get("method") == "oms_ma" and float(information.get("fixedStepSize")) == 0.004
+    for component in root.iterfind("ssd:System/ssd:Elements/ssd:Component", NAMESPACES):
+        chosen = component.find("ssd:Annotations/ssc:Annotation[@type='org.openmodelica']/oms:Annotations/"
+                                "oms:SimulationInformation", NAMESPACES)
+        assert chosen.get("name") == information.get("name"), component.get("name")
     experiment = root.find("ssd:DefaultExperiment", NAMESPACES)
     assert float(experiment.get("startTime")) == 0.0 and float(experiment.get("stopTime")) == 3.0
     osp = experiment.find("ssd:Annotations/ssc:Annotation[@type='com.opensimulationplatform']", NAMESPACES)
@@ -144,10 +151,14 @@ def test_the_harness_annotation_decides_and_the_others_stand_in_for_it(fmu_paths
         assert system.step == 0.002
     experiment = root.find("ssd:DefaultExperiment", NAMESPACES)
     experiment.remove(experiment[0])
+    information = root.find("ssd:System/ssd:Annotations/ssc:Annotation/oms:Annotations/oms:SimulationInformation",
+                            NAMESPACES)
+    information.set("fixedStepSize", "0.003")
     with load_system(rezipped(tmp_path / "oms.ssp", files, etree.tostring(root))) as system:
-        assert system.step == 0.004
-    master = root.find("ssd:System/ssd:Annotations/ssc:Annotation/oms:Annotations/oms:SimulationInformation/"
-                       "oms:FixedStepMaster", NAMESPACES)
-    master.set("stepSize", "fast")
-    with pytest.raises(HarnessError, match="FixedStepMaster stepSize = 'fast' is not a number"):
+        assert system.step == 0.004  # OMSimulator 2.x's FixedStepMaster
+    information.remove(information[0])
+    with load_system(rezipped(tmp_path / "oms3.ssp", files, etree.tostring(root))) as system:
+        assert system.step == 0.003  # OMSimulator 3.0's solver
+    information.set("fixedStepSize", "fast")
+    with pytest.raises(HarnessError, match="SimulationInformation fixedStepSize = 'fast' is not a number"):
         load_system(rezipped(tmp_path / "bad.ssp", files, etree.tostring(root)))

@@ -10,13 +10,15 @@ system uses under `resources/`.
   scene is looked at (the camera, the traces, the description), for which SSP 1.0 has no element, go
   into annotations of the system ("org.pendulum-harness.step", "org.pendulum-harness.bonds" and
   "org.pendulum-harness.view"), which `load_ssp` reads back and other importers ignore.
-* The step also goes where other importers read one, so that they run the scene at its step:
-  OMSimulator reads the first annotation of the system, "org.openmodelica", for
-  oms:Annotations/oms:SimulationInformation/oms:FixedStepMaster (description "oms-ma", its Jacobi
-  master, and stepSize); libcosim reads DefaultExperiment's annotation "com.opensimulationplatform"
-  for osp:Algorithm/osp:FixedStepAlgorithm baseStepSize (OMSimulator's src/OMSimulatorLib/System.cpp
-  and SystemWC.cpp, libcosim's src/cosim/ssp/ssp_parser.cpp). Both match the prefixes (oms:, osp:)
-  as written, so those are the prefixes used. ecos reads no step from an SSP.
+* The step also goes where other importers read one, so that they run the scene at its step.
+  OMSimulator: the system's first annotation, "org.openmodelica", holds oms:Annotations/
+  oms:SimulationInformation. Its C++ reader (2.x, src/OMSimulatorLib/System.cpp and SystemWC.cpp)
+  takes the child oms:FixedStepMaster (description "oms-ma", its Jacobi master, and stepSize); its
+  Python reader (3.0, src/OMSimulatorPython/utils.py) takes SimulationInformation's attributes as a
+  solver (name, method "oms_ma", fixedStepSize), which each component names in an annotation of its
+  own. libcosim (src/cosim/ssp/ssp_parser.cpp): DefaultExperiment's annotation
+  "com.opensimulationplatform", osp:Algorithm/osp:FixedStepAlgorithm baseStepSize. The C++ readers
+  match the prefixes (oms:, osp:) as written, so those are the prefixes used. ecos reads no step.
 """
 from __future__ import annotations
 
@@ -40,6 +42,7 @@ OMS_ANNOTATION = "org.openmodelica"
 OMS_NS = "https://raw.githubusercontent.com/OpenModelica/OMSimulator/master/schema/oms.xsd"
 OSP_ANNOTATION = "com.opensimulationplatform"
 OSP_NS = "http://opensimulationplatform.com/SSP/OSPAnnotations"
+OMS_SOLVER = "master"  # the name by which OMSimulator 3.0 puts each component under the system's solver
 FMU_TYPE = "application/x-fmu-sharedlibrary"
 
 
@@ -65,6 +68,13 @@ def _value_element(variable, value, where: str) -> ET.Element:
     if kind in ("Integer",) or kind.startswith(("Int", "UInt")):
         return ET.Element(_tag(SSV_NS, "Integer"), value=str(int(float(value))))
     return ET.Element(_tag(SSV_NS, "String"), value=str(value))
+
+
+def _oms_annotation(annotations: ET.Element, **solver: str) -> ET.Element:
+    """An "org.openmodelica" annotation in `annotations`: its oms:SimulationInformation, with `solver`."""
+    holder = ET.SubElement(ET.SubElement(annotations, _tag(SSC_NS, "Annotation"), type=OMS_ANNOTATION),
+                           _tag(OMS_NS, "Annotations"))
+    return ET.SubElement(holder, _tag(OMS_NS, "SimulationInformation"), solver)
 
 
 def system_structure(system: System, sources: dict[str, str]) -> bytes:
@@ -103,6 +113,8 @@ def system_structure(system: System, sources: dict[str, str]) -> bytes:
                     raise HarnessError(f"{where}: {Path(component.fmu).name} has no such variable")
                 parameter = ET.SubElement(parameters, _tag(SSV_NS, "Parameter"), name=name)
                 parameter.append(_value_element(variables[name], value, where))
+        if system.step is not None:
+            _oms_annotation(ET.SubElement(node, _tag(SSD_NS, "Annotations")), name=OMS_SOLVER)
     connections = ET.SubElement(element, _tag(SSD_NS, "Connections")) if system.connections else None
     for c in system.connections:
         ET.SubElement(connections, _tag(SSD_NS, "Connection"), startElement=c.source, startConnector=c.output,
@@ -110,10 +122,9 @@ def system_structure(system: System, sources: dict[str, str]) -> bytes:
     if system.bonds or system.step is not None or system.camera or system.traces or system.description:
         annotations = ET.SubElement(element, _tag(SSD_NS, "Annotations"))  # holds ssc:Annotation elements
         if system.step is not None:
-            # first: OMSimulator looks at the system's first annotation only
-            information = ET.SubElement(ET.SubElement(ET.SubElement(annotations, _tag(SSC_NS, "Annotation"),
-                                                                    type=OMS_ANNOTATION), _tag(OMS_NS, "Annotations")),
-                                        _tag(OMS_NS, "SimulationInformation"))
+            # first: OMSimulator's C++ reader looks at the system's first annotation only
+            information = _oms_annotation(annotations, name=OMS_SOLVER, method="oms_ma",
+                                          fixedStepSize=repr(float(system.step)))
             ET.SubElement(information, _tag(OMS_NS, "FixedStepMaster"), description="oms-ma",
                           stepSize=repr(float(system.step)))
             ET.SubElement(annotations, _tag(SSC_NS, "Annotation"), type=STEP_ANNOTATION).append(

@@ -175,16 +175,20 @@ def _bonds(root: ET.Element, what: str) -> list[Bond]:
 
 
 def _annotated_step(root: ET.Element, what: str) -> float | None:
-    """The communication step an annotation gives: this harness's own, which decides, else libcosim's
-    or OMSimulator's (ssp_export writes all three), so that an SSP made for those runs at its step here."""
+    """The communication step an annotation gives: this harness's own, which decides, else libcosim's,
+    else OMSimulator's (either reader's form, see harness.cosim.ssp_export), so that an SSP made for
+    those runs at its step here too."""
     from harness.cosim.ssp_export import OMS_ANNOTATION, OSP_ANNOTATION, STEP_ANNOTATION
-    for kind, name, attribute in ((STEP_ANNOTATION, "Step", "stepSize"), (OSP_ANNOTATION, "FixedStepAlgorithm",
-                                  "baseStepSize"), (OMS_ANNOTATION, "FixedStepMaster", "stepSize")):
+    forms = ((STEP_ANNOTATION, "Step", "stepSize"), (OSP_ANNOTATION, "FixedStepAlgorithm", "baseStepSize"),
+             (OMS_ANNOTATION, "FixedStepMaster", "stepSize"),
+             (OMS_ANNOTATION, "SimulationInformation", "fixedStepSize"))
+    for kind, name, attribute in forms:
         for annotation in root.iter():
             if not (annotation.tag.endswith("}Annotation") and annotation.get("type") == kind):
                 continue
             for element in annotation.iter():
-                if element.tag.rpartition("}")[2] == name:
+                # the harness's own must hold its step; the others' elements may serve other ends
+                if element.tag.rpartition("}")[2] == name and (kind == STEP_ANNOTATION or element.get(attribute)):
                     return _number(element.get(attribute), f"{what}: annotation {kind} {name} {attribute}")
     return None
 
