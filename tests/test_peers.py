@@ -1,11 +1,12 @@
 """The spring scenes (the coupled pendulums as the build packs them, the others written by
-`harness export`) and each FMU alone in three independent importers: libcosim and ecos (PyPI) and
-Maestro (Maven Central). All three couple by Jacobi with a one-step delay, i.e. inputs
-held from the previous communication point: with the harness set to the same semantics
-(--algorithm jacobi --extrapolation hold) the results agree to rounding."""
+`harness export`) and each FMU alone in independent importers: libcosim and ecos (PyPI), Maestro
+(Maven Central) and OMSimulator (PyPI, where it installs). All couple by Jacobi with a one-step
+delay, i.e. inputs held from the previous communication point: with the harness set to the same
+semantics (--algorithm jacobi --extrapolation hold) the results agree to rounding."""
 from __future__ import annotations
 
 import ctypes.util
+import importlib.util
 import json
 import os
 import shutil
@@ -101,21 +102,30 @@ def test_libcosim_agrees_with_the_harness(archives, harness_rows, scene):
     assert np.max(np.abs(rows - expected)) < 1e-12
 
 
-def test_libcosim_takes_the_step_from_an_exported_file(fmu_paths, tmp_path):
-    """Given no step, libcosim runs an exported scene at the step its DefaultExperiment annotation names
-    (0.004 s here, not the scenes' 0.01 s): its rows are the harness's at that step. (ecos cannot: its
-    SSP loader reads no step, and ecospy asks for one.)"""
-    pytest.importorskip("libcosimpy")
+def exported_at(tmp_path: Path, step: float, steps: int):
+    """The coupled pendulums exported with a step of their own (not the scenes' 0.01 s), and the harness on
+    them at that step (Jacobi, inputs held): the archive, the recorded outputs, the states' bound starts,
+    the FMUs and the harness's rows."""
     from harness.cosim.ssp_export import write_ssp
-    archive, step, steps = tmp_path / "coupled.ssp", 0.004, 250
+    archive = tmp_path / "coupled.ssp"
     with load_system(PROJECT_ROOT / "scenes" / "coupled_pendulums.json") as system:
         system.step = step
         write_ssp(system, archive)
     with load_system(archive) as system:
-        recorded, starts = recorded_points(system), state_starts(system)
-        result = run_system(system, MasterOptions(stop=step * steps, step=step, algorithm="jacobi", extrapolation="hold"))
-        expected = np.column_stack([result[n] for n in recorded])[1:]
-    rows = run_peer("run_libcosim.py", str(archive), "file", str(steps), json.dumps(starts), *recorded)
+        recorded = recorded_points(system)
+        result = run_system(system, MasterOptions(stop=step * steps, step=step, algorithm="jacobi",
+                                                  extrapolation="hold"))
+        fmus = sorted({c.fmu.stem for c in system.components})
+        return archive, recorded, state_starts(system), fmus, np.column_stack([result[n] for n in recorded])[1:]
+
+
+def test_libcosim_takes_the_step_from_an_exported_file(fmu_paths, tmp_path):
+    """Given no step, libcosim runs an exported scene at the step its DefaultExperiment annotation names
+    (0.004 s here): its rows are the harness's at that step. (ecos cannot: its SSP loader reads no step,
+    and ecospy asks for one.)"""
+    pytest.importorskip("libcosimpy")
+    archive, recorded, starts, _, expected = exported_at(tmp_path, 0.004, 250)
+    rows = run_peer("run_libcosim.py", str(archive), "file", "250", json.dumps(starts), *recorded)
     assert rows.shape == expected.shape
     assert np.max(np.abs(rows - expected)) < 1e-12
 
@@ -189,3 +199,49 @@ def test_each_fmu_alone_agrees_with_the_harness(request, fmu_paths, unzipped, tm
     assert np.ptp(expected, axis=0).min() > 1e-3  # every compared output moves
     assert np.max(np.abs(rows - expected)) < 1e-12
     compatibility.agrees(name, float(np.max(np.abs(rows - expected) / np.maximum(1.0, np.abs(expected)))))
+
+
+# OMSimulator's PyPI package is an sdist whose install fetches the binaries from OpenModelica's build
+# server; where it cannot, the rows say so. The check is an import, so a run without it costs nothing.
+OMSIMULATOR_MISSING = ("OMSimulator is not installed: PyPI has only its sdist 3.0.0.post198, whose install downloads "
+                       "OMSimulator-linux-focal-amd64-v3.0.0.post198-gf14b85b.tar.gz from build.openmodelica.org, "
+                       "which this machine cannot reach; `pip install OMSimulator` where it can")
+
+
+def needs_omsimulator() -> None:
+    if importlib.util.find_spec("OMSimulator") is None:
+        pytest.skip(OMSIMULATOR_MISSING)
+
+
+@pytest.mark.compatibility(importer="OMSimulator (PyPI)", version="2.0", interface="CS", platform="x86_64 Linux",
+                           criterion="the harness's simulate on 100 steps of 0.01 s, within 1e-10")
+@pytest.mark.parametrize("name", list(OUTPUTS))
+def test_omsimulator_runs_each_fmu_alone_as_the_harness(fmu_paths, unzipped, compatibility, name):
+    needs_omsimulator()
+    start = START.get(name, {})
+    rows = run_peer("run_omsimulator.py", "fmu", str(fmu_paths[name]), "0.01", "100", json.dumps(start),
+                    *OUTPUTS[name])
+    from harness.fmi.simulation import simulate
+    ours = simulate(fmu_paths[name], 1.0, 0.01, start_values=start, unzipdir=unzipped[name])
+    expected = np.column_stack([ours[n] for n in OUTPUTS[name]])[1:]
+    assert rows.shape == expected.shape
+    assert np.ptp(expected, axis=0).min() > 1e-3
+    difference = float(np.max(np.abs(rows - expected) / np.maximum(1.0, np.abs(expected))))
+    assert difference < 1e-10
+    compatibility.agrees(name, difference)
+
+
+@pytest.mark.compatibility(importer="OMSimulator (PyPI), an exported SSP", version="2.0", interface="CS",
+                           platform="x86_64 Linux", criterion="the harness's Jacobi master at the step the file "
+                                                               "names (no step given), within 1e-12")
+def test_omsimulator_runs_an_exported_scene_at_its_step(fmu_paths, tmp_path, compatibility):
+    """The coupled pendulums exported with a step of 0.004 s: OMSimulator, told no step, steps as the
+    harness does at that step."""
+    needs_omsimulator()
+    archive, recorded, _, fmus, expected = exported_at(tmp_path, 0.004, 250)
+    rows = run_peer("run_omsimulator.py", "ssp", str(archive), "250", *recorded)
+    assert rows.shape == expected.shape
+    difference = float(np.max(np.abs(rows - expected) / np.maximum(1.0, np.abs(expected))))
+    assert difference < 1e-12
+    for fmu in fmus:
+        compatibility.agrees(fmu, difference)
