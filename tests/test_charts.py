@@ -184,30 +184,22 @@ def hover(url: str) -> dict:
     return json.loads(result.stdout)
 
 
-def test_a_browser_shows_a_tooltip_over_every_point(tmp_path):
-    """Each point's centre, in Chromium, lies within an element that has a tooltip (nothing drawn over it)."""
-    shutil.copy(CHARTS / "work-precision.csv", tmp_path)
-    redraw(tmp_path)
-    url = (tmp_path / "work-precision.svg").as_uri()
-    seen = hover(url)
-    assert seen["requests"] == [url]
-    points = [p for p in work_precision.read_csv(tmp_path / "work-precision.csv") if math.isfinite(p.error)]
-    assert [(f["points"], f["covered"]) for f in seen["frames"]] == [(len(points), [])]
-
-
-def test_the_report_shows_the_interactive_chart_offline(tmp_path):
-    """The demo report's chart: the SVG in the page, its tooltips reachable, only local files loaded; the
-    PNG inside it for a browser without SVG."""
-    shutil.copy(CHARTS / "coupling.csv", tmp_path)
-    redraw(tmp_path)
-    page = write_index(Report([Section("Charts", "drawn", True, interactive_chart("coupling", "coupling"))]),
-                       tmp_path, 0.0)
+def test_the_report_shows_every_chart_with_a_tooltip_over_every_point(drawn, tmp_path):
+    """Every chart's SVG embedded as the demo report embeds it, in Chromium: at each point's centre the
+    browser finds an element with a tooltip (nothing without one drawn over it), and the page loads
+    local files only."""
+    stems = []
+    for name, figure, tips, _ in drawn:
+        stem = name.replace(" ", "-")
+        (tmp_path / f"{stem}.svg").write_text(svg_of(figure, tips))
+        stems.append((stem, sum("-tip" in gid for gid in tips.texts)))
+    page = write_index(Report([Section("Charts", "drawn", True,
+                                       "".join(interactive_chart(stem, stem) for stem, _ in stems))]), tmp_path, 0.0)
     text = page.read_text()
+    assert text.count('<object class="chart" data="') == len(stems) and "http" not in text
     assert '<object class="chart" data="coupling.svg" type="image/svg+xml"><img src="coupling.png"' in text
-    assert "http" not in text
     seen = hover(page.as_uri())
     assert all(url.startswith("file://") for url in seen["requests"]), seen["requests"]
-    assert (tmp_path / "coupling.svg").as_uri() in seen["requests"]
-    charts = [f for f in seen["frames"] if f["url"].endswith("coupling.svg")]
-    points = [p for p in coupling.read_csv(tmp_path / "coupling.csv") if math.isfinite(p.error)]
-    assert [(f["points"], f["covered"]) for f in charts] == [(3 * len(points), [])]
+    frames = {f["url"].rsplit("/", 1)[-1]: f for f in seen["frames"]}
+    for stem, points in stems:
+        assert (frames[f"{stem}.svg"]["points"], frames[f"{stem}.svg"]["covered"][:3]) == (points, []), stem

@@ -78,8 +78,9 @@ class Tooltips:
         self.prefix = prefix
         self.texts: dict[str, str] = {}
 
-    def attach(self, artist, text: str):
-        gid = f"{self.prefix}-tip{len(self.texts)}"
+    def attach(self, artist, text: str, kind: str = "tip"):
+        """kind: "tip" for a point, "curve" for a line (hovered anywhere along it)."""
+        gid = f"{self.prefix}-{kind}{len(self.texts)}"
         artist.set_gid(gid)
         self.texts[gid] = text
         return artist
@@ -279,19 +280,25 @@ def stability_figures(limits, cases, tables: dict):
         ax.contour(x, y, g, levels=[1.0], colors=["#2b6cb0"], linewidths=1.0)
         ax.axhline(0, color="grey", linewidth=0.5)
         ax.axvline(0, color="grey", linewidth=0.5)
+        def inside(w: complex) -> bool:  # a point outside the window is not drawn (nor hovered)
+            return x[0] <= w.real <= x[-1] and y[0] <= w.imag <= y[-1]
         for limit, case, z in points:
             label = _case_label(limit.object, limit.damping, limit.release)
             if case.linear:
                 predicted = (f", predicted {limit.theory_limit:.3g}" if math.isfinite(limit.theory_limit)
                              else ", predicted unbounded")
-                tips.point(ax, z.real, z.imag, f"{method}, {label}: stable up to h·ω = {limit.measured_limit:.3g}"
-                           f"{predicted}", marker=markers[case.object], color="#c53030", markersize=4.5)
-                if math.isfinite(limit.theory_limit):
-                    t = z * limit.theory_limit / limit.measured_limit
-                    ax.plot(t.real, t.imag, markers[case.object], markerfacecolor="none", color="black", markersize=8)
-            else:
+                text = f"{method}, {label}: stable up to h·ω = {limit.measured_limit:.3g}{predicted}"
+                t = z * limit.theory_limit / limit.measured_limit if math.isfinite(limit.theory_limit) else None
+                if t is not None and inside(t):
+                    tips.point(ax, t.real, t.imag, text, marker=markers[case.object], markerfacecolor="none",
+                               color="black", markersize=8)
+                # above the predicted ring, which nearly coincides: the measured point stays hoverable
+                if inside(z):
+                    tips.point(ax, z.real, z.imag, text, marker=markers[case.object], color="#c53030",
+                               markersize=4.5, zorder=5)
+            elif inside(z):
                 tips.point(ax, z.real, z.imag, f"{method}, {label} (nonlinear): stable up to h·ω = "
-                           f"{limit.measured_limit:.3g}", marker="x", color="#805ad5", markersize=7)
+                           f"{limit.measured_limit:.3g}", marker="x", color="#805ad5", markersize=7, zorder=5)
         ax.set_title(method if shown else f"{method}: A-stable", fontsize=9)
         ax.set_xlim(x[0], x[-1])
         ax.set_ylim(y[0], y[-1])
@@ -331,10 +338,11 @@ def stability_figures(limits, cases, tables: dict):
             style = ({"marker": "x", "color": "#805ad5", "markersize": 5} if nonlinear else
                      {"marker": markers[object_name], "color": colours(levels.index(round(ratio, 12))),
                       "markersize": 4.5})
+            # the measured marker above the predicted dash (which is wider, so it shows on both sides)
             tips.point(ax, x, limit.measured_limit, f"{limit.method}, {_case_label(*group)}: measured "
-                       f"{limit.measured_limit:.3g}{predicted}", **style)
+                       f"{limit.measured_limit:.3g}{predicted}", zorder=3, **style)
             if math.isfinite(limit.theory_limit):
-                ax.plot(x, limit.theory_limit, "_", color="black", markersize=7)
+                ax.plot(x, limit.theory_limit, "_", color="black", markersize=7, zorder=2.5)
     ax.set_xticks(range(len(methods)), methods, rotation=55, ha="right", rotation_mode="anchor", fontsize=8)
     ax.set_xlim(-0.7, len(methods) - 0.3)
     ax.set_yscale("log")
@@ -418,6 +426,9 @@ def coupling_chart(points, out: Path, scene: str = "Coupled pendulums") -> list[
     return save(figure, out, "coupling", tips)
 
 
+LONG_RUN_ERRORS = (1e-9, 1e4)  # the y range: symmetric methods' bands to blown-up runs
+
+
 def long_run_figure(series):
     """Energy error against time over the long run, log-log, a panel per case and family."""
     objects = list(dict.fromkeys(s.object for s in series))
@@ -443,9 +454,10 @@ def long_run_figure(series):
                 setting = f"h = {s.h:.4g} s" if math.isfinite(s.h) else f"tol = {s.tol:g}"
                 text = (f"{name}: {method}, {setting}, {s.cost_per_period:.0f} evaluations per period: slope "
                         f"{s.slope:.2f}, {points[-1][1]:.2g} after {points[-1][0]:,.0f} periods")
-                tips.attach(ax.plot(*zip(*points), color=style["color"], linewidth=1.4, zorder=5)[0], text)
-                tips.point(ax, *points[-1], text, markersize=4, zorder=6, **style)
-            ax.set_ylim(1e-9, 1e4)
+                tips.attach(ax.plot(*zip(*points), color=style["color"], linewidth=1.4, zorder=5)[0], text, "curve")
+                if LONG_RUN_ERRORS[0] <= points[-1][1] <= LONG_RUN_ERRORS[1]:  # a run that blew up ends off the chart
+                    tips.point(ax, *points[-1], text, markersize=4, zorder=6, **style)
+            ax.set_ylim(*LONG_RUN_ERRORS)
     family_legends(panels, blocks, groups, [])
     figure.legend([Line2D([], [], color=CONTEXT, linewidth=0.8)], ["the other families' methods"],
                   loc="outside lower center", fontsize=8, frameon=False)

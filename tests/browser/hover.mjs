@@ -1,7 +1,7 @@
 // For tests/test_charts.py: loads a chart's SVG, or a page that embeds charts, in Debian's Chromium,
 // headless, and finds in every document for every point with a tooltip (a group whose id has -tip in
-// it) whether the element at its centre lies inside a group with a <title>, which the browser shows on
-// hover.
+// it) whether the element at its centre lies inside a group with a <title> (its own or one drawn over
+// it), which the browser shows on hover.
 //   node hover.mjs URL   prints {"frames": [{"url", "points", "covered": [ids showing no tooltip]}],
 //                                "requests": [every URL the page asked for]}
 // CHROMIUM (default /usr/bin/chromium) names the browser.
@@ -24,7 +24,7 @@ try {
         window.scrollBy(box.x - 50, box.y - 50);  // the point in view: elementFromPoint sees only the viewport
         const inView = point.getBoundingClientRect();
         let hit = document.elementFromPoint(inView.x + inView.width / 2, inView.y + inView.height / 2);
-        while (hit && !(hit.id && hit.id.includes("-tip") && hit.querySelector(":scope > title"))) {
+        while (hit && !(hit.tagName === "g" && hit.querySelector(":scope > title"))) {
           hit = hit.parentElement;
         }
         if (!hit) covered.push(point.id);
