@@ -51,7 +51,8 @@ def synthetic_atlas():
     imaginary axis and a damping ray, and a nonlinear release; the measured limits 1% inside the
     predicted ones."""
     tables = {"euler": {"a": [[0.0]], "b": [1.0]},
-              "rk4": {"a": [[0, 0, 0, 0], [0.5, 0, 0, 0], [0, 0.5, 0, 0], [0, 0, 1, 0]], "b": [1 / 6, 1 / 3, 1 / 3, 1 / 6]},
+              "rk4": {"a": [[0, 0, 0, 0], [0.5, 0, 0, 0], [0, 0.5, 0, 0], [0, 0, 1, 0]],
+                      "b": [1 / 6, 1 / 3, 1 / 3, 1 / 6]},
               "taylor": {"taylor": True, "order": 6}, "gbs": {"extrapolation": True, "columns": 3}}
     cases = [Case("SimplePendulum", 0.0, 0.01, 3.13, eigenvalues=(1j, -1j)),
              Case("SimplePendulum", 3.13, 0.01, 3.13, eigenvalues=(-0.5 + 0.75 ** 0.5 * 1j, -0.5 - 0.75 ** 0.5 * 1j)),

@@ -131,7 +131,8 @@ def log_axes(ax) -> None:
 def family_grid(objects: list[str], groups, xlabel: str, ylabel: str, panel_height: float = 1.55):
     """A panel per object (column) and family (row), blocks of GRID_COLUMNS objects one below the other;
     an object's panels share their axes. The family's legend goes right of its row, outside the axes,
-    once its lines are drawn (`family_legends`). Returns the figure and {(object, family key): axes}."""
+    once its lines are drawn (`family_legends`). Returns the figure, {(object, family key): axes} and the
+    blocks (lists of objects)."""
     blocks = [objects[i:i + GRID_COLUMNS] for i in range(0, len(objects), GRID_COLUMNS)]
     columns, rows = min(GRID_COLUMNS, len(objects)), len(groups) * len(blocks)
     figure = plt.figure(figsize=(WIDTH, 0.9 + rows * panel_height), layout="constrained")
@@ -159,14 +160,15 @@ def family_grid(objects: list[str], groups, xlabel: str, ylabel: str, panel_heig
                     ax.tick_params(labelbottom=False)
                 if column == 0:
                     ax.set_ylabel(ylabel, fontsize=8.5)
-    return figure, panels, [(b, block) for b, block in enumerate(blocks)]
+    return figure, panels, blocks
 
 
 def family_legends(panels, blocks, groups, peers: list[str]) -> None:
     """Each family's methods, right of the last panel of its row in every block."""
-    for _, block in blocks:
+    for block in blocks:
         for key, label, methods in groups:
-            handles = [Line2D([], [], linewidth=1.4, markersize=4.5, **method_style(m, peers)) for m in methods]
+            handles = [Line2D([], [], linewidth=1.4, markersize=4.5, linestyle="--" if key == PEERS[0] else "-",
+                              **method_style(m, peers)) for m in methods]
             panels[(block[-1], key)].legend(handles, methods, title=label, loc="upper left",
                                             bbox_to_anchor=(1.03, 1.0), borderaxespad=0, fontsize=7.5,
                                             title_fontsize=8, frameon=False, alignment="left")
