@@ -5,6 +5,7 @@ deviation of its accelerations from the independent numeric route. One object af
 this process, so the figures share the machine's state."""
 from __future__ import annotations
 
+import argparse
 import re
 import sys
 import tempfile
@@ -21,10 +22,16 @@ from harness.objects.registry import object_files  # noqa: E402
 
 
 def main() -> int:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    parser.add_argument("--objects", nargs="+", metavar="NAME", help="only these objects (default: every one)")
+    args = parser.parse_args()
+    paths = [p for p in object_files() if args.objects is None or p.stem in args.objects]
+    if args.objects and len(paths) != len(set(args.objects)):
+        parser.error(f"unknown objects: {sorted(set(args.objects) - {p.stem for p in paths})}")
     print(f"{'object':22s} {'coords':>6s} {'derive+build s':>15s} {'validate s':>11s} {'checks':>8s} "
           f"{'numeric route':>14s}")
     with tempfile.TemporaryDirectory(prefix="derive-times-") as scratch:
-        for path in object_files():
+        for path in paths:
             start = time.perf_counter()
             fmu = derive_fmu(path, scratch).path
             built = time.perf_counter()

@@ -8,6 +8,7 @@ import threading
 from pathlib import Path
 
 from harness.errors import HarnessError
+from harness.fmi.methods import SOLVERS
 
 
 def _parse_assignment(text: str) -> tuple[str, object]:
@@ -378,8 +379,7 @@ def build_parser() -> argparse.ArgumentParser:
                                "(FMI 2.0), fmi3/SimplePendulum, ... (FMI 3.0)")
     p.add_argument("--stop", type=positive_number, default=10.0, help="stop time [s] (default 10)")
     p.add_argument("--step", type=positive_number, default=0.01, help="communication step [s] (default 0.01)")
-    p.add_argument("--solver", help="integration method (euler ... ab6, implicit_midpoint, gauss_legendre4, "
-                   "stormer_verlet; default rk4)")
+    p.add_argument("--solver", help=f"integration method, one of {', '.join(SOLVERS)} (default rk4)")
     p.add_argument("--h", type=positive_number, help="internal step [s]")
     p.add_argument("--quiet", action="store_true", help="no progress lines on stderr during a long run")
     p.add_argument("--set", action="append", default=[], metavar="NAME=VALUE", help="start value or parameter")

@@ -14,7 +14,7 @@ PENDULUMS = ("SimplePendulum", "DoublePendulum", "SpringPendulum")
 # The files that take a worker a minute or more (their shared set-up: the demo, the sanitizer build, the atlas),
 # longest first. Run first (./run test keeps the collection order: --no-loadscope-reorder), they leave the many
 # short files to even out the workers' ends; last, one of them would keep a worker busy while the others idle.
-LONGEST_FILES = ("test_memory_safety.py", "test_demo.py", "test_stability.py", "test_planner.py",
+LONGEST_FILES = ("test_docs_measurements.py", "test_memory_safety.py", "test_docs.py", "test_demo.py", "test_stability.py", "test_planner.py",
                  "test_work_precision_objects.py", "test_work_precision.py", "test_hostile.py", "test_cli.py",
                  "test_registry.py", "test_chaos_plan.py")
 

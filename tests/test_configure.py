@@ -84,3 +84,23 @@ def test_the_check_passes_with_the_projects_python():
                              "harness.objects.model_description_fmi3"], capture_output=True, text=True,
                             env={k: v for k, v in os.environ.items() if k != "PYTHONPATH"})
     assert (result.returncode, result.stdout) == (0, ""), result.stdout + result.stderr
+
+
+def _cached_python(build: Path) -> str:
+    return next(line.split("=", 1)[1] for line in (build / "CMakeCache.txt").read_text().splitlines()
+                if line.startswith("Python3_EXECUTABLE:"))
+
+
+def test_an_activated_environment_does_not_reconfigure_the_build(tmp_path):
+    """FindPython prefers an activated virtual environment: without the kept interpreter, a build
+    configured once from `./run` and once after `source .venv/bin/activate` rebuilt every FMU."""
+    assert configure(tmp_path, sys.executable).returncode == 0
+    first = _cached_python(tmp_path / "build")
+    venv = tmp_path / "venv"
+    (venv / "bin").mkdir(parents=True)
+    (venv / "bin" / "python3").symlink_to(sys.executable)
+    activated = {**os.environ, "VIRTUAL_ENV": str(venv), "PATH": f"{venv / 'bin'}{os.pathsep}{os.environ['PATH']}"}
+    again = subprocess.run(["cmake", "-S", str(ROOT), "-B", str(tmp_path / "build")], capture_output=True, text=True,
+                           env=activated)
+    assert again.returncode == 0, again.stderr
+    assert _cached_python(tmp_path / "build") == first != str(venv / "bin" / "python3")

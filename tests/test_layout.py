@@ -19,7 +19,7 @@ LAYERS = {
     "cosim": 2,
     "studies": 3,
     "scene": 4, "view": 4,
-    "cli": 5, "__main__": 5, "__init__": 5,
+    "cli": 5, "__main__": 5, "__init__": 5, "reference_pages": 5,
 }
 
 

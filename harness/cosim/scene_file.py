@@ -40,10 +40,43 @@ from harness.fmi.fmus import FMU_NAMES, locate_fmu, project_fmu_name
 
 MAX_SCENE_BYTES = 16 << 20
 
-SCENE_KEYS = ("name", "description", "stop", "step", "components", "connections", "bonds", "accuracy", "camera")
-COMPONENT_KEYS = ("fmu", "start", "traces")
-ACCURACY_KEYS = ("position", "pixels")
-CAMERA_KEYS = ("scale", "frame_rate", "layout")
+# The scene file's format: each object's keys and what they mean. The reader allows exactly these keys, and the
+# reference page of the format (docs/reference/scene-file.md) is written from here.
+FORMAT = {
+    "scene": {
+        "name": "the scene's name (text)",
+        "description": "free text",
+        "stop": "stop time [s], a positive number",
+        "step": "communication (macro) step [s], a positive number",
+        "components": "object of components by name (keys below); stepped in the order listed, which is the "
+                      "Gauss-Seidel order",
+        "connections": "list of `[\"source.output\", \"target.input\"]` pairs; an input takes one connection",
+        "bonds": "power bonds for the energy-conserving coupling: `[\"c.force_input\", \"c.velocity_output\"]`, "
+                 "with the position output third where the force's source reads it",
+        "accuracy": "what the planner keeps: `{\"position\": metres}` or `{\"pixels\": n}`",
+        "camera": "how the scene is looked at (keys below)",
+    },
+    "component": {
+        "fmu": "a project FMU's name (`SimplePendulum`; `fmi3/SimplePendulum` for FMI 3.0), or a path to an "
+               "`.fmu` relative to the scene file",
+        "start": "start values and parameters by variable name: a finite number or an enumeration item's name",
+        "traces": "pairs of output names to draw, `[[\"x\", \"y\"]]`",
+    },
+    "accuracy": {
+        "position": "tolerance [m] on every traced point at every frame",
+        "pixels": "tolerance in pixels, through the camera's scale",
+    },
+    "camera": {
+        "scale": "pixels per metre",
+        "frame_rate": "frames per second",
+        "layout": "`together` (one picture, the default) or `side by side` (each group of coupled components in a "
+                  "panel of its own)",
+    },
+}
+SCENE_KEYS = tuple(FORMAT["scene"])
+COMPONENT_KEYS = tuple(FORMAT["component"])
+ACCURACY_KEYS = tuple(FORMAT["accuracy"])
+CAMERA_KEYS = tuple(FORMAT["camera"])
 LAYOUTS = ("together", "side by side")  # the live view: one picture, or one panel per group of coupled components
 
 

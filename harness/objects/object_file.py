@@ -45,6 +45,60 @@ MAX_NESTING = 100  # parentheses in one expression: Python's parser and SymPy's 
 AXES = ("x", "y", "z")
 
 
+# The object file's format: each table's keys and what they mean. The reader allows exactly these keys,
+# and the reference page of the format (docs/reference/object-file.md) is written from here.
+FORMAT = {
+    "file": {
+        "identifier": "the model's name: a C identifier of at most 60 characters, equal to the file's name in "
+                      "modelDescription/",
+        "description": "one line saying what the object is",
+        "parameters": "table of parameters, each `NAME = { ... }` (keys below); `d`, `h` and `tol` may be restated "
+                      "to set their default, range or place",
+        "coordinates": "table of generalized coordinates, each with its velocity (keys below); at least one",
+        "energy": "the kinetic and potential energy, `T` and `U`",
+        "points": "table of named points whose positions (and velocities) become outputs; at least one",
+        "forces": "table of force inputs, each acting on a point",
+        "rest": "the rest state of the linear model: a coordinate's value, an expression in the parameters "
+                "(default 0)",
+        "require": "list of expressions in parameters, coordinates and t that must stay positive; where one is "
+                   "not, the state is singular",
+    },
+    "parameters": {
+        "start": "default value (required but for d, h and tol)",
+        "unit": "unit, e.g. \"m\", \"kg\", \"N/m\"",
+        "min": "smallest allowed value (inclusive)",
+        "max": "largest allowed value (inclusive)",
+        "description": "text for the model description",
+    },
+    "coordinates": {
+        "start": "start value (default 0)",
+        "unit": "unit of the coordinate",
+        "velocity": "name of its velocity (required)",
+        "velocity_start": "start value of the velocity (default 0)",
+        "description": "text for the coordinate's variable",
+        "velocity_description": "text for the velocity's variable",
+    },
+    "energy": {
+        "T": "kinetic energy: quadratic and positive in the velocities; parameters, coordinates, velocities, t and "
+             "`speed2(point)`, the squared speed of a named point",
+        "U": "potential energy in parameters, coordinates and t",
+    },
+    "points": {
+        "x": "horizontal position (expression in parameters, coordinates and t)",
+        "y": "vertical position, up",
+        "z": "third axis, for a 3-D point",
+        "names": "output names other than `<point>_x`, `<point>_v_x`, ...: `{ x = \"x2\", v_x = \"v_x\" }`",
+        "description": "text for the point's outputs",
+        "velocity": "false: no velocity outputs (default true)",
+    },
+    "forces": {
+        "point": "the point the force acts on (required); inputs `<force>_x`, `<force>_y` (and `_z`)",
+        "names": "input names other than `<force>_x`, ...: `{ x = \"F_x\", y = \"F_y\" }`",
+        "description": "text for the force's inputs",
+    },
+}
+
+
 class ObjectFileError(Exception):
     """A bad object file: the message is one line naming the file, the key and the problem."""
 
@@ -259,8 +313,7 @@ def read_object_file(path: str | Path, text: str | None = None) -> ObjectSpec:
         raise ObjectFileError(f"{path}: is not UTF-8 text") from None
     except tomllib.TOMLDecodeError as error:
         raise ObjectFileError(f"{path}: is not valid TOML ({error})") from None
-    reader.known_keys(data, {"identifier", "description", "parameters", "coordinates", "energy", "points", "forces",
-                             "rest", "require"}, "file")
+    reader.known_keys(data, set(FORMAT["file"]), "file")
 
     identifier = reader.string(data, "identifier", "identifier")
     if not IDENTIFIER.match(identifier) or len(identifier) > 60:
@@ -289,7 +342,7 @@ def read_object_file(path: str | Path, text: str | None = None) -> ObjectSpec:
     parameters: list[Parameter] = []
     for name, entry in reader.table(data, "parameters").items():
         where = claimed_entry("parameters", name, entry, '{ start = 1.0, unit = "m" }',
-                              {"start", "unit", "min", "max", "description"})
+                              set(FORMAT["parameters"]))
         defaults = FRAMEWORK_PARAMETERS.get(name, {})
         start = reader.number(entry, "start", f"{where}.start", defaults.get("start"))
         if start is None:
@@ -308,7 +361,7 @@ def read_object_file(path: str | Path, text: str | None = None) -> ObjectSpec:
     coordinates: list[Coordinate] = []
     for name, entry in reader.table(data, "coordinates").items():
         where = claimed_entry("coordinates", name, entry, '{ start = 0.5, unit = "rad", velocity = "omega" }',
-                              {"start", "unit", "velocity", "velocity_start", "description", "velocity_description"})
+                              set(FORMAT["coordinates"]))
         if "velocity" not in entry:
             raise reader.fail(f"{where}.velocity", "missing: every coordinate needs the name of its velocity")
         velocity = claim(reader.string(entry, "velocity", f"{where}.velocity"), f"{where}.velocity")
@@ -335,7 +388,7 @@ def read_object_file(path: str | Path, text: str | None = None) -> ObjectSpec:
         reader.name(name, where)
         if not isinstance(entry, dict):
             raise reader.fail(where, "must be a table such as { x = \"L*sin(phi)\", y = \"-L*cos(phi)\" }")
-        reader.known_keys(entry, {"x", "y", "z", "names", "description", "velocity"}, where)
+        reader.known_keys(entry, set(FORMAT["points"]), where)
         axes = [a for a in AXES if a in entry]
         if axes not in (["x", "y"], ["x", "y", "z"]):
             raise reader.fail(where, "needs x and y expressions (and z for a 3-D point)")
@@ -356,7 +409,7 @@ def read_object_file(path: str | Path, text: str | None = None) -> ObjectSpec:
                             with_velocity))
 
     energy = reader.table(data, "energy")
-    reader.known_keys(energy, {"T", "U"}, "energy")
+    reader.known_keys(energy, set(FORMAT["energy"]), "energy")
     for key in ("T", "U"):
         if key not in energy:
             raise reader.fail(f"energy.{key}", "missing")
@@ -375,7 +428,7 @@ def read_object_file(path: str | Path, text: str | None = None) -> ObjectSpec:
         reader.name(name, where)
         if not isinstance(entry, dict):
             raise reader.fail(where, "must be a table such as { point = \"bob\" }")
-        reader.known_keys(entry, {"point", "description", "names"}, where)
+        reader.known_keys(entry, set(FORMAT["forces"]), where)
         point = reader.string(entry, "point", f"{where}.point")
         if point not in point_names:
             raise reader.fail(f"{where}.point", f"{point!r} is not one of the points ({', '.join(point_names)})")
