@@ -104,3 +104,20 @@ def test_an_activated_environment_does_not_reconfigure_the_build(tmp_path):
                            env=activated)
     assert again.returncode == 0, again.stderr
     assert _cached_python(tmp_path / "build") == first != str(venv / "bin" / "python3")
+
+
+def test_the_build_is_driven_by_the_cmake_that_configured_it(tmp_path):
+    """An activated environment puts PyPI's CMake before Debian's on PATH; a build configured by one and
+    built by the other regenerated its build system and rebuilt every FMU."""
+    from harness.fmi.fmus import configured_cmake
+    assert configured_cmake(tmp_path) == "cmake"  # not configured yet: the one on PATH
+    recorded = tmp_path / "bin" / "cmake"
+    recorded.parent.mkdir()
+    recorded.write_text("#!/bin/sh\n")
+    recorded.chmod(0o755)
+    (tmp_path / "CMakeCache.txt").write_text(f"CMAKE_BUILD_TYPE:STRING=Release\nCMAKE_COMMAND:INTERNAL={recorded}\n")
+    assert configured_cmake(tmp_path) == str(recorded)
+    recorded.unlink()  # a CMake since removed: the one on PATH again
+    assert configured_cmake(tmp_path) == "cmake"
+    run_script = (ROOT / "run").read_text()
+    assert "CMAKE_COMMAND:INTERNAL=" in run_script  # ./run follows the same rule

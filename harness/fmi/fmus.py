@@ -49,9 +49,23 @@ def build_fmus(quiet: bool = True) -> None:
         _build(output, errors)
 
 
+def configured_cmake(folder: Path) -> str:
+    """The CMake that configured the build folder, else the one on PATH. Another CMake (an activated
+    environment's, from PyPI, beside Debian's) would regenerate the build system and rebuild every FMU."""
+    cache = folder / "CMakeCache.txt"
+    if cache.is_file():
+        for line in cache.read_text(errors="replace").splitlines():
+            if line.startswith("CMAKE_COMMAND:INTERNAL="):
+                recorded = line.split("=", 1)[1]
+                if os.access(recorded, os.X_OK):
+                    return recorded
+    return "cmake"
+
+
 def _build(output, errors) -> None:
-    for command in (["cmake", "-S", str(PROJECT_ROOT), "-B", str(build_dir()), "-DCMAKE_BUILD_TYPE=Release",
-                     f"-DOBJECTS_PYTHON={sys.executable}"], ["cmake", "--build", str(build_dir()), "-j2"]):
+    cmake = configured_cmake(build_dir())
+    for command in ([cmake, "-S", str(PROJECT_ROOT), "-B", str(build_dir()), "-DCMAKE_BUILD_TYPE=Release",
+                     f"-DOBJECTS_PYTHON={sys.executable}"], [cmake, "--build", str(build_dir()), "-j2"]):
         result = run_program(command, stdout=output, stderr=errors)
         if result.returncode != 0:
             lines = (result.stderr or "").splitlines()
