@@ -184,14 +184,21 @@ def _anchors(page: Path) -> set[str]:
     return anchors
 
 
+def _local_links(page: Path) -> list[tuple[str, Path, str]]:
+    """The page's links outside code blocks to the project's files: (as written, the file, the anchor).
+    Links to the web are not followed here."""
+    text = re.sub(r"```.*?```", "", page.read_text(), flags=re.S)
+    links = []
+    for target in LINK.findall(text):
+        if not re.match(r"[a-z]+:", target):
+            path, _, anchor = target.partition("#")
+            links.append((target, (page.parent / path).resolve() if path else page, anchor))
+    return links
+
+
 @pytest.mark.parametrize("page", PAGES + sorted(GENERATED_BY_TESTS), ids=_page_id)
 def test_no_link_is_broken(page):
-    text = re.sub(r"```.*?```", "", page.read_text(), flags=re.S)
-    for target in LINK.findall(text):
-        if re.match(r"[a-z]+:", target):
-            continue  # the web: not followed here
-        path, _, anchor = target.partition("#")
-        resolved = (page.parent / path).resolve() if path else page
+    for target, resolved, anchor in _local_links(page):
         assert resolved.exists(), f"{_page_id(page)}: the link {target} names no file"
         if anchor and resolved.suffix == ".md":
             assert anchor in _anchors(resolved), f"{_page_id(page)}: the link {target} names no heading there"
@@ -204,9 +211,7 @@ def test_every_page_is_reachable_from_the_readme():
         if page in seen or page.suffix != ".md" or not page.exists():
             continue
         seen.add(page)
-        text = re.sub(r"```.*?```", "", page.read_text(), flags=re.S)
-        todo += [(page.parent / t.partition("#")[0]).resolve() for t in LINK.findall(text)
-                 if not re.match(r"[a-z]+:", t) and t.partition("#")[0]]
+        todo += [resolved for _, resolved, _ in _local_links(page)]
     assert [p for p in PAGES if p not in seen] == []
 
 
