@@ -121,3 +121,33 @@ def test_the_build_is_driven_by_the_cmake_that_configured_it(tmp_path):
     assert configured_cmake(tmp_path) == "cmake"
     run_script = (ROOT / "run").read_text()
     assert "CMAKE_COMMAND:INTERNAL=" in run_script  # ./run follows the same rule
+
+
+def test_run_starts_in_a_folder_never_built(tmp_path):
+    """A fresh clone has no build/CMakeCache.txt: reading the recorded CMake from it must not end
+    `./run` (under `set -e` the failed read once stopped it with exit code 2 before the build)."""
+    import hashlib
+    import shutil
+    (tmp_path / "run").write_bytes((ROOT / "run").read_bytes())
+    (tmp_path / "run").chmod(0o755)
+    (tmp_path / "pyproject.toml").write_bytes((ROOT / "pyproject.toml").read_bytes())
+    venv_bin = tmp_path / ".venv" / "bin"
+    venv_bin.mkdir(parents=True)
+    stamp = hashlib.sha256((ROOT / "pyproject.toml").read_bytes()).hexdigest()[:16]
+    (tmp_path / ".venv" / f".installed-{stamp}").touch()
+    calls = tmp_path / "calls.txt"
+    tools = tmp_path / "tools"
+    tools.mkdir()
+    for name, body in (("python", f'echo "python $*" >> {calls}\n'), ("cmake", f'echo "cmake $*" >> {calls}\n')):
+        target = (venv_bin if name == "python" else tools) / name
+        target.write_text(f"#!/bin/sh\n{body}")
+        target.chmod(0o755)
+    # only what the script uses: no apt-get or npm, so it installs nothing from the network
+    for tool in ("bash", "sh", "sed", "cat", "sha256sum", "cut", "mkdir", "id", "dirname", "nproc"):
+        (tools / tool).symlink_to(shutil.which(tool))
+    result = subprocess.run([str(tmp_path / "run"), "demo", "--out", "x"], capture_output=True, text=True,
+                            env={"PATH": str(tools), "HOME": str(tmp_path)})
+    assert result.returncode == 0, result.stdout + result.stderr
+    lines = calls.read_text().splitlines()
+    assert lines[0].startswith("cmake -S . -B build") and lines[1].startswith("cmake --build build"), lines
+    assert lines[2] == "python -m harness demo --out x", lines
