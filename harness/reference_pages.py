@@ -170,7 +170,8 @@ def object_file_page() -> str:
              "not be used: " + ", ".join(f"`{n}`" for n in sorted(object_file.RESERVED)) + ".")
     return _keys_page("Object file", "the object file reader, `harness/objects/object_file.py`", intro,
                       object_file.FORMAT, {"file": "The file", "parameters": "A parameter", "coordinates":
-                                           "A coordinate", "energy": "energy", "points": "A point", "forces": "A force"})
+                                           "A coordinate", "energy": "energy", "points": "A point", "forces": "A force",
+                                           "constraints": "A constraint"})
 
 
 def ssp_page() -> str:

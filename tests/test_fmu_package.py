@@ -168,7 +168,7 @@ def test_prototypes_match_the_standard_headers(tmp_path):
 def run_codegen(tmp_path: Path, xml_files: list[Path]) -> subprocess.CompletedProcess:
     return subprocess.run([sys.executable, str(PROJECT_ROOT / "tools" / "fmu_codegen.py"), "--out", str(tmp_path / "gen"),
                            "--models", str(PROJECT_ROOT / "fmus" / "models"),
-                           "--sources", "fmi2_functions.c", "core.c", "stepper.c", "instance.c", "integrators.c", "linear_model.c",
+                           "--sources", "fmi2_functions.c", "core.c", "stepper.c", "instance.c", "integrators.c", "linear_model.c", "constraints.c",
                            "physics.c",
                            "--xml", *map(str, xml_files)], capture_output=True, text=True)
 

@@ -103,6 +103,9 @@ static int ensure_constants(Instance *inst, const char *function)
         log_error(inst, "%s: %s", function, message);
         return 0;
     }
+#if N_CONSTRAINTS > 0
+    inst->constants.active = &inst->s.active_constraints; /* the instance never moves */
+#endif
     inst->constants_valid = 1;
     return 1;
 }
@@ -267,6 +270,20 @@ Status core_exit_initialization(Instance *inst, const char *function)
         if (!model_outputs(&inst->constants, inst->s.time, NULL, real) || first_non_finite(real, N_REAL) >= 0) {
             log_error(inst, "%s: the start values of the inputs give a singular configuration "
                       "or non-finite outputs", function);
+            return STATUS_ERROR;
+        }
+    }
+#endif
+#if N_CONSTRAINTS > 0
+    {
+        char message[256];
+        double u[INPUT_SLOTS];
+        int i, forces = 0;
+        gather_inputs(inst, u);
+        for (i = 0; i < N_INPUTS; i++) forces |= u[i] != 0.0;
+        if (!start_constraints(&inst->constants, &inst->s.active_constraints, inst->s.time, inst->s.real,
+                               forces ? u : NULL, message, sizeof message)) {
+            log_error(inst, "%s: %s", function, message);
             return STATUS_ERROR;
         }
     }
@@ -469,6 +486,9 @@ Status core_get_integer(Instance *inst, const char *function, const unsigned int
         else if (k == INT_n_rejected) counter = m->n_rejected;
         else if (k == INT_n_jacobians) counter = m->n_jacobians;
         else if (k == INT_n_iterations) counter = m->n_iterations;
+#ifdef INT_n_events
+        else if (k == INT_n_events) counter = m->n_events;
+#endif
         else is_counter = 0;
         if (is_counter) number = counter > (uint64_t)most ? most : (int64_t)counter; /* saturates */
 #else
@@ -646,6 +666,22 @@ static int restored_state_valid(Instance *inst, const char *function, const SimS
         log_error(inst, "%s: %s", function, message);
         return 0;
     }
+#if N_CONSTRAINTS > 0
+    for (i = 0; i < N_CONSTRAINTS; i++)
+        if ((s->active_constraints >> i & 1) && (constants.law[i].compliant || constants.law[i].bilateral)) break;
+    if (i < N_CONSTRAINTS || (s->active_constraints >> N_CONSTRAINTS) != 0) {
+        log_error(inst, "%s: the FMU state's active constraints 0x%x name a constraint that cannot be active (allowed: "
+                  "a bit for each of the %d rigid unilateral constraints)", function, (unsigned)s->active_constraints,
+                  N_CONSTRAINTS);
+        return 0;
+    }
+#else
+    if (s->active_constraints != 0) {
+        log_error(inst, "%s: the FMU state's active constraints are %d, but this FMU has no constraints", function,
+                  (int)s->active_constraints);
+        return 0;
+    }
+#endif
     return 1;
 }
 
@@ -824,6 +860,69 @@ Status core_get_derivatives(Instance *inst, const char *function, double derivat
     for (i = 0; i < nx; i++)
         if (status == STATUS_OK || isfinite(inst->s.real[N_STATES + i])) derivatives[i] = inst->s.real[N_STATES + i];
     return status;
+}
+
+Status core_get_event_indicators(Instance *inst, const char *function, double z[], size_t n)
+{
+    if (n != N_CONSTRAINTS) {
+        log_error(inst, "%s: the number of event indicators is %lu, but this FMU has %d", function, (unsigned long)n,
+                  N_CONSTRAINTS);
+        return STATUS_ERROR;
+    }
+    if (n > 0 && !z) {
+        log_error(inst, "%s: the event indicator array is NULL", function);
+        return STATUS_ERROR;
+    }
+#if N_CONSTRAINTS > 0
+    {
+        double u[INPUT_SLOTS];
+        int i, forces = 0;
+        if (!ensure_constants(inst, function)) return STATUS_ERROR;
+        gather_inputs(inst, u);
+        for (i = 0; i < N_INPUTS; i++) forces |= u[i] != 0.0;
+        constraint_indicators(&inst->constants, inst->s.active_constraints, inst->s.time, inst->s.real,
+                              forces ? u : NULL, z);
+        /* a rigid gap's event lies just past contact (as in Co-Simulation), so that the state an impact leaves
+         * behind is not taken for the next event */
+        for (i = 0; i < N_CONSTRAINTS; i++)
+            if (!inst->constants.law[i].compliant && !(inst->s.active_constraints >> i & 1)) z[i] += GAP_ROUNDING;
+        if (first_non_finite(z, N_CONSTRAINTS) >= 0) {
+            log_discard(inst, "%s: an event indicator is not finite at the current state", function);
+            return STATUS_DISCARD;
+        }
+    }
+#endif
+    return STATUS_OK;
+}
+
+Status core_new_discrete_states(Instance *inst, const char *function, int *states_changed)
+{
+    *states_changed = 0;
+#if N_CONSTRAINTS > 0
+    {
+        double u[INPUT_SLOTS], before[N_STATES];
+        const int32_t active = inst->s.active_constraints;
+        int i, forces = 0;
+        if (!ensure_constants(inst, function)) return STATUS_ERROR;
+        gather_inputs(inst, u);
+        for (i = 0; i < N_INPUTS; i++) forces |= u[i] != 0.0;
+        memcpy(before, inst->s.real, sizeof before);
+        if (!resolve_events(&inst->constants, &inst->s.active_constraints, inst->s.time, inst->s.real,
+                            forces ? u : NULL, &inst->s.integrator.n_events) ||
+            !project_constraints(&inst->constants, inst->s.active_constraints, inst->s.time, inst->s.real)) {
+            memcpy(inst->s.real, before, sizeof before);
+            inst->s.active_constraints = active;
+            log_error(inst, "%s: the constraints at t = %.17g are dependent (an impact or a contact force has no "
+                      "unique solution)", function, inst->s.time);
+            return STATUS_ERROR;
+        }
+        *states_changed = memcmp(before, inst->s.real, sizeof before) != 0 || active != inst->s.active_constraints;
+        inst->outputs_valid = 0;
+    }
+#else
+    (void)inst, (void)function;
+#endif
+    return STATUS_OK;
 }
 
 Status core_get_continuous_states(Instance *inst, const char *function, double x[], size_t nx)
@@ -1044,10 +1143,23 @@ static Status sensitivity_finite(Instance *inst, const char *function, double va
     return STATUS_DISCARD;
 }
 
+#if N_CONSTRAINTS > 0
+static Status partial_derivatives_refused(Instance *inst, const char *function)
+{
+    log_error(inst, "%s: this FMU has constraints and provides no partial derivatives (providesDirectionalDerivative "
+              "= false): the constrained motion's switch at contacts is not differentiated", function);
+    return STATUS_ERROR;
+}
+#endif
+
 Status core_get_directional_derivative(Instance *inst, const char *function, const unsigned int unknown[],
                                        size_t n_unknown, const unsigned int known[], size_t n_known,
                                        const double seed[], double sensitivity[])
 {
+#if N_CONSTRAINTS > 0
+    (void)unknown, (void)n_unknown, (void)known, (void)n_known, (void)seed, (void)sensitivity;
+    return partial_derivatives_refused(inst, function);
+#endif
     double change[N_REAL], point[N_REAL];
     Status status;
     size_t i;
@@ -1070,6 +1182,10 @@ Status core_get_adjoint_derivative(Instance *inst, const char *function, const u
                                    size_t n_unknown, const unsigned int known[], size_t n_known,
                                    const double seed[], double sensitivity[])
 {
+#if N_CONSTRAINTS > 0
+    (void)unknown, (void)n_unknown, (void)known, (void)n_known, (void)seed, (void)sensitivity;
+    return partial_derivatives_refused(inst, function);
+#endif
     double change[N_REAL], point[N_REAL], result;
     const double unit = 1.0;
     Status status;

@@ -283,13 +283,17 @@ fmi2Status fmi2NewDiscreteStates(fmi2Component c, fmi2EventInfo *info)
         log_error(inst, "fmi2NewDiscreteStates: fmi2EventInfo pointer is NULL");
         return fmi2Error;
     }
-    info->newDiscreteStatesNeeded = fmi2False;
-    info->terminateSimulation = fmi2False;
-    info->nominalsOfContinuousStatesChanged = fmi2False;
-    info->valuesOfContinuousStatesChanged = fmi2False;
-    info->nextEventTimeDefined = fmi2False;
-    info->nextEventTime = 0.0;
-    return fmi2OK;
+    {
+        int changed;
+        const Status status = core_new_discrete_states(inst, "fmi2NewDiscreteStates", &changed);
+        info->newDiscreteStatesNeeded = fmi2False;
+        info->terminateSimulation = fmi2False;
+        info->nominalsOfContinuousStatesChanged = fmi2False;
+        info->valuesOfContinuousStatesChanged = changed ? fmi2True : fmi2False;
+        info->nextEventTimeDefined = fmi2False;
+        info->nextEventTime = 0.0;
+        return (fmi2Status)status;
+    }
 }
 
 fmi2Status fmi2EnterContinuousTimeMode(fmi2Component c)
@@ -332,14 +336,7 @@ fmi2Status fmi2GetDerivatives(fmi2Component c, fmi2Real derivatives[], size_t nx
 
 fmi2Status fmi2GetEventIndicators(fmi2Component c, fmi2Real eventIndicators[], size_t ni)
 {
-    Instance *inst = enter(c, FN_GET_EVENT_INDICATORS);
-    (void)eventIndicators;
-    if (!inst) return fmi2Error;
-    if (ni != 0) {
-        log_error(inst, "fmi2GetEventIndicators: ni = %lu, but this FMU has no event indicators", (unsigned long)ni);
-        return fmi2Error;
-    }
-    return fmi2OK;
+    CALL(FN_GET_EVENT_INDICATORS, core_get_event_indicators(inst, NAME(FN_GET_EVENT_INDICATORS), eventIndicators, ni));
 }
 
 fmi2Status fmi2GetContinuousStates(fmi2Component c, fmi2Real x[], size_t nx)

@@ -44,6 +44,9 @@ typedef struct {
 #include "model_description.h"
 #include "physics.h"
 #include "taylor.h"
+#ifndef N_CONSTRAINTS /* a hand-written model without constraints (the Spring) */
+#define N_CONSTRAINTS 0
+#endif
 
 /* Sizes that stay legal C for a model without states or inputs (the Spring). */
 #define STATE_SLOTS (N_STATES > 0 ? N_STATES : 1)
@@ -74,6 +77,7 @@ enum {
 typedef struct {
     uint64_t n_rhs, n_steps, n_rejected;
     uint64_t n_jacobians, n_iterations;            /* the implicit methods' Newton solves */
+    uint64_t n_events;                             /* impacts, activations, releases, compliant onsets and ends */
     double ab_history[AB_MAX_STEPS][STATE_SLOTS]; /* past right-hand sides, ring buffer */
     int32_t ab_count;                              /* valid entries in ab_history */
     int32_t ab_head;                               /* slot of the newest entry */
@@ -93,6 +97,7 @@ typedef struct {
     double input_derivative[INPUT_SLOTS]; /* first derivatives of the inputs over the next (or last) step */
     int32_t slopes_set; /* 1: set for the next step; 0: those of the last step, for its end's output rates */
     int32_t machine_state;
+    int32_t active_constraints; /* a bit per rigid constraint that acts (resting, taut); bilateral ones always act */
     IntegratorMemory integrator;
 } SimState;
 
@@ -188,6 +193,10 @@ INTERNAL Status core_set_time(Instance *inst, const char *function, double time)
 INTERNAL Status core_set_continuous_states(Instance *inst, const char *function, const double x[], size_t n);
 INTERNAL Status core_get_derivatives(Instance *inst, const char *function, double dx[], size_t n);
 INTERNAL Status core_get_continuous_states(Instance *inst, const char *function, double x[], size_t n);
+/* Event indicators (one per constraint) and the event handling of event mode: impacts, activations, releases;
+ * states_changed is set where the continuous states or the active constraints changed. */
+INTERNAL Status core_get_event_indicators(Instance *inst, const char *function, double z[], size_t n);
+INTERNAL Status core_new_discrete_states(Instance *inst, const char *function, int *states_changed);
 INTERNAL Status core_get_nominals(Instance *inst, const char *function, double nominal[], size_t n);
 /* Co-Simulation: first derivatives of inputs and outputs (`orders` must all be 1), the step itself. */
 INTERNAL Status core_set_input_derivatives(Instance *inst, const char *function, const unsigned int vr[], size_t n,
@@ -246,6 +255,39 @@ INTERNAL void model_advance_inputs(double *real, const double *du, double H);
  * inputs and their rates there, w the work series; 0 where the mass matrix is not positive definite. */
 INTERNAL int model_taylor(const ModelConst *c, double t, const double *u0, const double *du, int order,
                           double (*x)[TAYLOR_SLOTS], double (*w)[TAYLOR_SLOTS]);
+#endif
+
+#if N_CONSTRAINTS > 0
+/* physics.c of an object with constraints: g, G = dg/dq (row-major), g' and gamma = g'' - G a at (t, x); the
+ * mass matrix (row-major). */
+INTERNAL void model_constraints(const ModelConst *c, double t, const double *x, double *g, double *G, double *rate,
+                                double *gamma);
+INTERNAL void model_mass(const ModelConst *c, double t, const double *x, double *M);
+/* constraints.c. The accelerations dx[N_COORDINATES...] of the free motion get the constraint forces of
+ * `active` (bits of the rigid unilateral constraints) and of the compliant ones; lambda (NULL: not
+ * wanted) receives every constraint's force. 0 where the constraints are dependent. */
+INTERNAL int constraint_forces(const ModelConst *c, int32_t active, double t, const double *x, double *dx,
+                               double *lambda);
+/* Event indicators: the gap of an inactive or compliant constraint, the force of an active one, 1 for a
+ * bilateral one; u the inputs (NULL: none). */
+INTERNAL void constraint_indicators(const ModelConst *c, int32_t active, double t, const double *x, const double *u,
+                                    double *z);
+/* Whether indicator i's change from `before` to `after` is an event. */
+INTERNAL int indicator_crossed(const ModelConst *c, int i, double before, double after);
+/* At an event: impacts (Newton's restitution, simultaneous ones one contact at a time until none approaches),
+ * then activations and releases; velocities jump, positions stay. Counts into events; 0 where singular. */
+INTERNAL int resolve_events(const ModelConst *c, int32_t *active, double t, double *x, const double *u,
+                            uint64_t *events);
+/* The acting rigid constraints back to g = 0 and g' = 0 (the drift of a step). */
+INTERNAL int project_constraints(const ModelConst *c, int32_t active, double t, double *x);
+/* The start values against the rigid constraints (0 with a message naming the one violated) and the
+ * constraints active from the start. */
+INTERNAL int start_constraints(const ModelConst *c, int32_t *active, double t, double *x, const double *u,
+                               char *message, size_t size);
+/* model_outputs' and model_output_rates' part: gaps, forces, the compliant energies in E_pot and E. */
+INTERNAL int constraint_outputs(const ModelConst *c, double t, const double *u, double *real);
+INTERNAL void constraint_output_rates(const ModelConst *c, double t, const double *real, const double *dx,
+                                      const double *u, double *rate);
 #endif
 
 /* Default for model_advance_inputs (instance.c): each input moves with its own first derivative. */

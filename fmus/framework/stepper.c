@@ -187,6 +187,230 @@ static double adaptive_pass(RightHandSide *f, int solver, IntegratorMemory *memo
     return integrate_adaptive(f, memory, x, t, t_end, h, tol, check_each);
 }
 
+#if N_CONSTRAINTS > 0
+#include <float.h>
+
+/* Steps with events: each substep is taken, then the event indicators are compared at its ends. Where
+ * one crossed, the event time is found on the method's own step map (one step from the substep's start
+ * over theta, solved for the indicator's zero by the Illinois variant of regula falsi), so that the
+ * state at the event has the method's order; the event is resolved there (impacts, activations,
+ * releases), and the rest of the substep is taken from it. Adams-Bashforth methods take their
+ * Runge-Kutta starter for these partial steps and restart their history after an event. */
+typedef struct {
+    Instance *inst;
+    RightHandSide *f;
+    int solver, adaptive;
+    double h, tol;
+} EventStepper;
+
+static const double *inputs_at(const RightHandSide *f, double t, double *u)
+{
+    int i;
+    for (i = 0; i < N_INPUTS; i++) u[i] = f->u0[i] + (t - f->t0) * f->du[i];
+    return f->forces ? u : NULL;
+}
+
+static void indicators_at(const EventStepper *e, double t, const double *x, double *z)
+{
+    double u[INPUT_SLOTS];
+    constraint_indicators(&e->inst->constants, e->inst->s.active_constraints, t, x, inputs_at(e->f, t, u), z);
+}
+
+/* x = the method's step of theta from (t, x0), with the integrator memory `memory` left as it was. */
+static void trial_step(const EventStepper *e, const IntegratorMemory *memory, const double *x0, double t,
+                       double theta, double *x)
+{
+    IntegratorMemory scratch = *memory;
+    memcpy(x, x0, STATE_SLOTS * sizeof(double));
+    if (e->adaptive) {
+        adaptive_pass(e->f, e->solver, &scratch, x, t, t + theta, e->h, e->tol, 0);
+    } else {
+        scratch.ab_count = 0;
+        integrate_fixed(e->f, e->solver, &scratch, x, t, theta, 0, 1, 0);
+    }
+}
+
+static int crossed(const EventStepper *e, int k, double before, double after)
+{
+    return indicator_crossed(&e->inst->constants, k, before, after);
+}
+
+/* The first event in (t, t + span] from x0 (indicators z0 there), whose step of span crossed; leaves the
+ * state at the event in x and returns the event's offset from t. */
+static double locate_event(const EventStepper *e, const IntegratorMemory *memory, const double *x0, double t,
+                           double span, const double *z0, double *x)
+{
+    double z[N_CONSTRAINTS], zt[N_CONSTRAINTS], xt[STATE_SLOTS], xhi[STATE_SLOTS];
+    double lo = 0.0, hi = span, zlo, zhi;
+    int k, j, round, round_k, iteration, side = 0;
+    trial_step(e, memory, x0, t, span, xhi);
+    indicators_at(e, t + span, xhi, z);
+    /* the indicator that crossed first by linear interpolation */
+    k = -1;
+    for (j = 0; j < N_CONSTRAINTS; j++)
+        if (crossed(e, j, z0[j], z[j]) &&
+            (k < 0 || z0[j] / (z0[j] - z[j]) < z0[k] / (z0[k] - z[k])))
+            k = j;
+    for (round = 0; round <= N_CONSTRAINTS && k >= 0; round++) {
+        zlo = z0[k];
+        zhi = z[k];
+        lo = 0.0;
+        /* A rigid gap that starts touching (just after an impact) and returns within the step: from a point
+         * where it is open. */
+        if (!e->inst->constants.law[k].compliant && !(zlo > 0.0)) {
+            double theta = hi;
+            int found = 0;
+            for (j = 0; j < 40 && !found; j++) {
+                theta *= 0.5;
+                trial_step(e, memory, x0, t, theta, xt);
+                indicators_at(e, t + theta, xt, zt);
+                if (zt[k] > 0.0) {
+                    lo = theta;
+                    zlo = zt[k];
+                    found = 1;
+                }
+            }
+            if (!found) { /* touching all along: the event is at the start */
+                memcpy(x, x0, STATE_SLOTS * sizeof(double));
+                return 0.0;
+            }
+        }
+        for (iteration = 0; iteration < 200 && hi - lo > 4.0 * DBL_EPSILON * (fabs(t) + span); iteration++) {
+            double theta = hi - zhi * (hi - lo) / (zhi - zlo);
+            if (!(theta > lo && theta < hi)) theta = 0.5 * (lo + hi);
+            trial_step(e, memory, x0, t, theta, xt);
+            indicators_at(e, t + theta, xt, zt);
+            if (e->inst->constants.law[k].compliant ? (zt[k] > 0.0) != (z0[k] > 0.0) : zt[k] <= 0.0) {
+                hi = theta;
+                zhi = zt[k];
+                memcpy(xhi, xt, sizeof xhi);
+                if (side == 1) zlo *= 0.5; /* Illinois: the retained end's value halved */
+                side = 1;
+            } else {
+                lo = theta;
+                zlo = zt[k];
+                if (side == -1) zhi *= 0.5;
+                side = -1;
+            }
+        }
+        /* another indicator that crossed before this one's zero: locate that one within [t, t + hi] */
+        indicators_at(e, t + hi, xhi, z);
+        for (j = 0, round_k = k, k = -1; j < N_CONSTRAINTS && k < 0; j++)
+            if (j != round_k && crossed(e, j, z0[j], z[j])) k = j;
+    }
+    memcpy(x, xhi, STATE_SLOTS * sizeof(double));
+    return hi;
+}
+
+static int state_finite(const Instance *inst, const double *x)
+{
+    return model_state_ok(&inst->constants, x);
+}
+
+static Status step_with_events(Instance *inst, const char *function, RightHandSide *f, int solver, double t, double H)
+{
+    SimState *s = &inst->s;
+    IntegratorMemory *memory = &s->integrator;
+    const ModelConst *c = &inst->constants;
+    EventStepper e;
+    double *x = s->real;
+    double z0[N_CONSTRAINTS], z1[N_CONSTRAINTS], checked[N_REAL], u[INPUT_SLOTS];
+    const double t_end = t + H;
+    const uint64_t events_before = memory->n_events;
+    int64_t n, i;
+    double hs;
+    e.inst = inst;
+    e.f = f;
+    e.solver = solver;
+    e.h = s->real[VR_h];
+    e.tol = s->real[VR_tol];
+    e.adaptive = solver == SOLVER_RKF45 || ((solver == SOLVER_GBS || solver == SOLVER_TAYLOR) && e.tol > 0.0);
+    n = (int64_t)fmax(1.0, ceil(H / e.h - 1e-9));
+    hs = H / (double)n;
+    if (!e.adaptive) {
+        /* each substep, and at most an event's location per substep */
+        const double work = 2.0 * evaluations_needed(solver, 0, (double)n, f) + (double)n;
+        if (work > MAX_EVALUATIONS_PER_CALL) {
+            log_error(inst, "%s: communicationStepSize = %g with %s at h = %g needs %.0f right-hand-side "
+                      "evaluations with its event checks (allowed at most %.0f per call): raise h or shorten the "
+                      "step", function, H, solver_name(solver), e.h, work, MAX_EVALUATIONS_PER_CALL);
+            return STATUS_ERROR;
+        }
+        if (memory->ab_count > 0 && fabs(hs - memory->ab_step) > 1e-10 * hs) memory->ab_count = 0;
+        memory->ab_step = hs;
+    }
+    indicators_at(&e, t, x, z0);
+    for (i = 0; i < n; i++) {
+        double ta = t + (double)i * hs;
+        const double tb = i + 1 == n ? t_end : t + (double)(i + 1) * hs;
+        double x0[STATE_SLOTS];
+        IntegratorMemory m0 = *memory;
+        int any, k;
+        memcpy(x0, x, sizeof x0);
+        if (e.adaptive) {
+            if (adaptive_pass(f, solver, memory, x, ta, tb, e.h, e.tol, 0) < tb) {
+                memcpy(x, x0, sizeof x0);
+                count_work(memory, f);
+                return fail(inst, function, t, ta, solver_name(solver), e.h, 0);
+            }
+        } else {
+            integrate_fixed(f, solver, memory, x, t, hs, i, 1, 0);
+        }
+        if (!state_finite(inst, x)) {
+            memcpy(x, x0, sizeof x0);
+            *memory = m0;
+            count_work(memory, f);
+            return fail(inst, function, t, ta, solver_name(solver), e.h, f->unconverged);
+        }
+        indicators_at(&e, tb, x, z1);
+        for (any = 0, k = 0; k < N_CONSTRAINTS; k++) any |= crossed(&e, k, z0[k], z1[k]);
+        while (any) {
+            const double theta = locate_event(&e, &m0, x0, ta, tb - ta, z0, x);
+            ta += theta;
+            *memory = m0;
+            memory->ab_count = 0;
+            if (!resolve_events(c, &s->active_constraints, ta, x, inputs_at(f, ta, u), &memory->n_events) ||
+                !project_constraints(c, s->active_constraints, ta, x) || !state_finite(inst, x)) {
+                count_work(memory, f);
+                finish(inst, t, ta - t, ta);
+                log_discard(inst, "%s: the constraints at t = %.17g are dependent (an impact or a contact force has no "
+                            "unique solution); stopped there (last successful time %.17g)", function, ta, ta);
+                return STATUS_DISCARD;
+            }
+            if (memory->n_events - events_before > MAX_EVENTS_PER_CALL) {
+                count_work(memory, f);
+                finish(inst, t, ta - t, ta);
+                log_discard(inst, "%s: %d events within this step, the most one call handles; stopped at t = %.17g "
+                            "(last successful time %.17g): take a shorter communication step", function,
+                            MAX_EVENTS_PER_CALL, ta, ta);
+                return STATUS_DISCARD;
+            }
+            memcpy(x0, x, sizeof x0);
+            m0 = *memory;
+            indicators_at(&e, ta, x, z0);
+            any = 0;
+            if (tb - ta > 4.0 * DBL_EPSILON * fabs(tb)) {
+                trial_step(&e, &m0, x0, ta, tb - ta, x);
+                indicators_at(&e, tb, x, z1);
+                for (k = 0; k < N_CONSTRAINTS; k++) any |= crossed(&e, k, z0[k], z1[k]);
+            } else {
+                memcpy(z1, z0, sizeof z1);
+            }
+        }
+        if (!project_constraints(c, s->active_constraints, tb, x)) {
+            count_work(memory, f);
+            return fail(inst, function, t, ta, solver_name(solver), e.h, 0);
+        }
+        memcpy(z0, z1, sizeof z0);
+        if (inst->report_step && inst->s.machine_state == MS_STEP_COMPLETE) state_acceptable(inst, tb, x);
+    }
+    count_work(memory, f);
+    f->checks++;
+    if (!evaluate_at(inst, t_end, x, checked)) return fail(inst, function, t, t_end, solver_name(solver), e.h, 0);
+    return finish_with(inst, t, H, checked, f->inputs_vary);
+}
+#endif
+
 Status step_to(Instance *inst, const char *function, double t, double H)
 {
     SimState *s = &inst->s;
@@ -258,6 +482,9 @@ Status step_to(Instance *inst, const char *function, double t, double H)
                   "first); allowed for gbs: 0 (fixed step h) or [%g, 1]", function, s->real[VR_tol], GBS_SMALLEST_TOL);
         return STATUS_ERROR;
     }
+#if N_CONSTRAINTS > 0
+    return step_with_events(inst, function, &f, solver, t, H);
+#endif
     if (solver == SOLVER_RKF45 || ((solver == SOLVER_GBS || solver == SOLVER_TAYLOR) && s->real[VR_tol] > 0.0)) {
         const double t_end = t + H;
         double x_start[STATE_SLOTS];

@@ -28,7 +28,7 @@ from harness.processes import run_program
 
 PROJECT_ROOT = Path(__file__).resolve().parents[2]
 FRAMEWORK = PROJECT_ROOT / "fmus" / "framework"
-FRAMEWORK_HEADERS = ("fmi2_api.h", "framework.h", "integrators.h", "linear_model.h", "taylor.h")
+FRAMEWORK_HEADERS = ("fmi2_api.h", "framework.h", "integrators.h", "linear_model.h", "taylor.h", "constraints.h")
 # The flags of the CMake Release build: same code, same numbers.
 C_FLAGS = ("-std=c99", "-O3", "-DNDEBUG", "-fPIC", "-fvisibility=hidden", "-Wall", "-Wextra", "-Wno-unused-parameter")
 

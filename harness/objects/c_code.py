@@ -183,6 +183,10 @@ def generate_c(derivation: Derivation) -> GeneratedC:
     outputs_body = _output_function("real", targets, [prepared(e) for e in values + [derivation.T, derivation.U]],
                                     "&real[VR_E_kin], &real[VR_E_pot], NULL, NULL" if has_linear else None)
     outputs_body = _with_locals(real_locals, outputs_body)
+    constraint_source = ""
+    if spec.constraints:
+        outputs_body += _constraint_output_call(derivation.inputs)
+        constraint_source = _constraint_functions(derivation, prepared, state_locals)
     names.mapping.update({a: sp.Symbol(f"dx[{n + j}]", real=True) for j, a in enumerate(accelerations)})
     accelerated = [[total_derivative(x, q, v, accelerations, t) for x in velocity] for velocity in derivation.velocities]
     _, rates = _point_outputs(spec, derivation.velocities, accelerated)
@@ -190,6 +194,9 @@ def generate_c(derivation: Derivation) -> GeneratedC:
     rates_body = _output_function("rate", targets, [prepared(e) for e in rates + energy_rates],
                                   "NULL, NULL, &rate[VR_E_kin], &rate[VR_E_pot]" if has_linear else None)
     rates_body = _with_locals(real_locals, rates_body)
+    if spec.constraints:
+        rates_body += ["    {", *_inputs_from_real(derivation.inputs),
+                       f"        constraint_output_rates(c, t, real, dx, {'u' if nf else 'NULL'}, rate);", "    }"]
 
     directional_body = _with_locals(
         real_locals + [f"    const double acc{j} = dx[{n + j}] + c->d * s_{c.velocity};"
@@ -199,6 +206,13 @@ def generate_c(derivation: Derivation) -> GeneratedC:
     # ---- model_prepare
     prepare = [f"    c->p_{p.name} = real[VR_{p.name}];" for p in parameters]
     prepare.append("    c->d = real[VR_d];")
+    for k, constraint in enumerate(spec.constraints):
+        law = f"c->law[{k}]"
+        prepare += [f"    {law}.bilateral = {int(constraint.bilateral)};", f"    {law}.compliant = {int(constraint.compliant)};",
+                    f"    {law}.restitution = {c_expr(names.to_c(constraint.restitution))};",
+                    f"    {law}.stiffness = {c_expr(names.to_c(constraint.stiffness if constraint.compliant else 0))};",
+                    f"    {law}.exponent = {constraint.exponent!r};",
+                    f"    {law}.damping = {c_expr(names.to_c(constraint.damping))};"]
     prepare += [f"    {c_expr(symbol)} = {c_expr(value)};" for symbol, value in constants.definitions]
     prepare += constant_factor_lines
     for j, pivot in constant_pivots:
@@ -252,13 +266,18 @@ def generate_c(derivation: Derivation) -> GeneratedC:
         n_constants=max(1, len(constants.definitions)),
         factor_fields="".join(f"    double {name};\n" for name in factor_constants),
         linear_field="    int linear;\n    LinearModel lin;\n" if has_linear else "",
+        constraint_fields=("    ConstraintLaw law[N_CONSTRAINTS];\n    const int32_t *active; /* the FMU state's active "
+                           "constraints, a bit each */\n") if spec.constraints else "",
+        constraints=_constraint_header(spec),
+        equations="model_free_equations" if spec.constraints else "model_equations",
+        constrained=_CONSTRAINED_EQUATIONS if spec.constraints else "",
         derivatives="\n".join(body), file=spec.path.name,
         selected=("    if (c->linear) {\n        linear_model_derivatives(&c->lin, c->d, x, u, dx);\n        return;\n    }\n"
                   if has_linear else "") + "    model_equations(c, t, x, u, dx);")
     source = _SOURCE.format(
         identifier=spec.identifier, file=spec.path.name, prepare="\n".join(prepare), state_ok="\n".join(ok_body),
         explain="\n".join(explain), outputs="\n".join(outputs_body), rates="\n".join(rates_body),
-        directional="\n".join(directional_body), taylor="\n".join(taylor.lines),
+        directional="\n".join(directional_body), taylor="\n".join(taylor.lines), constraint_functions=constraint_source,
         closed_form=("    if (!c->linear) return 0;\n    linear_model_step(&c->lin, c->d, H, u, x);\n    return 1;"
                      if has_linear else "    (void)c, (void)H, (void)u, (void)x;\n    return 0;"))
     return GeneratedC(header, source)
@@ -281,6 +300,9 @@ def _taylor_function(spec, n: int, nf: int, diagonal: bool, pivots: list, mass: 
     variables.update({sp.Symbol(f"u[{k}]", real=True): f"us[{k}]" for k in range(nf)})
     variables[sp.Symbol("t", real=True)] = "ts"
     try:
+        if spec.constraints:
+            raise TaylorUnavailable(f"the Taylor series of {spec.identifier}'s constrained motion are not generated "
+                                    "yet: take another method")
         code = taylor_code(n, mass, diagonal, forcing, forces, variables)
     except TaylorUnavailable as reason:
         return _TaylorFunction(False, str(reason), 0, ["    (void)c, (void)t, (void)u0, (void)du, (void)order, (void)x, (void)w;",
@@ -535,22 +557,22 @@ _HEADER = """/* {identifier}: generated from modelDescription/{file} by harness.
 #define GBS_MAX_COLUMNS {gbs_columns}
 #define GBS_SMALLEST_TOL {gbs_smallest_tol!r}
 #include "linear_model.h"
-
+{constraints}
 /* Parameters (p_), the damping d and parameter-only subexpressions (k), set by model_prepare. */
 typedef struct {{
     double{parameter_fields};
     double d;
     double k[{n_constants}];
-{factor_fields}{linear_field}}} ModelConst;
+{factor_fields}{linear_field}{constraint_fields}}} ModelConst;
 
 /* dx = f(t, x, u) of the object's equations: x = (q, v), dx = (v, a). u == NULL means every force
  * input is zero. Inlined into the integrators' loops (model = linear never reaches them: its closed
  * form takes every step). */
-static inline void model_equations(const ModelConst *c, double t, const double *x, const double *u, double *dx)
+static inline void {equations}(const ModelConst *c, double t, const double *x, const double *u, double *dx)
 {{
 {derivatives}
 }}
-
+{constrained}
 /* dx = f(t, x, u) of the model selected by `model`: for Model Exchange and the outputs. */
 static inline void model_derivatives(const ModelConst *c, double t, const double *x, const double *u, double *dx)
 {{
@@ -618,4 +640,67 @@ int model_taylor(const ModelConst *c, double t, const double *u0, const double *
 }}
 
 void model_advance_inputs(double *real, const double *du, double H) {{ advance_inputs_linearly(real, du, H); }}
+{constraint_functions}"""
+
+
+_CONSTRAINED_EQUATIONS = """
+/* The motion with the constraint forces (constraints.c): the free motion above, then the forces of the
+ * compliant constraints that overlap and of the rigid ones that act. */
+INTERNAL int constrain_motion(const ModelConst *c, double t, const double *x, double *dx, double *lambda);
+static inline void model_equations(const ModelConst *c, double t, const double *x, const double *u, double *dx)
+{
+    model_free_equations(c, t, x, u, dx);
+    constrain_motion(c, t, x, dx, NULL);
+}
 """
+
+
+def _constraint_header(spec) -> str:
+    if not spec.constraints:
+        return "#define N_CONSTRAINTS 0\n"
+    k = len(spec.constraints)
+    names = ", ".join(f'"{c.name}"' for c in spec.constraints)
+    gaps = ", ".join(f"VR_{c.outputs[0]}" for c in spec.constraints)
+    forces = ", ".join(f"VR_{c.outputs[1]}" for c in spec.constraints)
+    return (f"#define N_CONSTRAINTS {k}\n#include \"constraints.h\"\n"
+            f"static const char *const CONSTRAINT_NAMES[N_CONSTRAINTS] = {{{names}}};\n"
+            f"static const unsigned CONSTRAINT_GAP_VRS[N_CONSTRAINTS] = {{{gaps}}};\n"
+            f"static const unsigned CONSTRAINT_FORCE_VRS[N_CONSTRAINTS] = {{{forces}}};\n")
+
+
+def _inputs_from_real(inputs: list) -> list[str]:
+    if not inputs:
+        return []
+    return [f"        const double u[{len(inputs)}] = {{{', '.join(f'real[VR_{s}]' for s in inputs)}}};"]
+
+
+def _constraint_output_call(inputs: list) -> list[str]:
+    """model_outputs' last part for an object with constraints: gaps, forces and the compliant energies."""
+    return ["    {", *_inputs_from_real(inputs),
+            f"        if (!constraint_outputs(c, t, {'u' if inputs else 'NULL'}, real)) return 0;", "    }"]
+
+
+def _constraint_functions(derivation: Derivation, prepared, state_locals: list[str]) -> str:
+    """model_constraints (g, G = dg/dq row by row, g' and gamma = g'' - G a) and model_mass (M, full)."""
+    n, terms = derivation.n, derivation.constraints
+    values = []
+    for term in terms:
+        values += [term.gap, *term.G, term.rate, term.gamma]
+    lines, reduced, _ = _cse_lines([prepared(v) for v in values], "w")
+    width = n + 3
+    for k in range(len(terms)):
+        g, *G, rate, gamma = reduced[k * width:(k + 1) * width]
+        lines.append(f"    g[{k}] = {c_expr(g)};")
+        lines += [f"    G[{k * n + j}] = {c_expr(e)};" for j, e in enumerate(G)]
+        lines += [f"    rate[{k}] = {c_expr(rate)};", f"    gamma[{k}] = {c_expr(gamma)};"]
+    mass_lines, mass_reduced, _ = _cse_lines([prepared(derivation.M[i, j]) for i in range(n) for j in range(n)], "w")
+    mass_lines += [f"    M[{k}] = {c_expr(e)};" for k, e in enumerate(mass_reduced)]
+    signature = "const ModelConst *c, double t, const double *x"
+    return "\n".join([
+        "", "/* The constraints at (t, x): gaps g, their gradients G (a row of N_COORDINATES each), rates g' and",
+        " * gamma = g'' - G a. */",
+        f"void model_constraints({signature}, double *g, double *G, double *rate, double *gamma)", "{",
+        *_with_locals(state_locals, lines + ["    (void)c, (void)t;"]), "}", "",
+        "/* The mass matrix d2T/dv2 at (t, x), row by row. */",
+        f"void model_mass({signature}, double *M)", "{", *_with_locals(state_locals, mass_lines + ["    (void)c, (void)t, (void)x;"]),
+        "}", ""])

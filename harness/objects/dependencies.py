@@ -19,6 +19,7 @@ import sympy as sp
 
 from harness.fmi.methods import COUNTER_NAMES
 from harness.objects.derivation import Derivation, sample_points, vanishes
+from harness.objects.object_file import EVENT_COUNTER
 
 ACCELERATION = "accelerations"
 
@@ -58,6 +59,18 @@ def dependencies(derivation: Derivation, initial: bool = False) -> dict[str, set
     result["E"] = result["E_kin"] | result["E_pot"]
     for counter in COUNTER_NAMES:
         result[counter] = set()
+    if spec.constraints:
+        # The constraint forces couple every acceleration to every state and input: not listed, which
+        # reads as "depends on every known". A gap depends on what its expression holds; the compliant
+        # laws' energies join E_pot.
+        for c in spec.coordinates:
+            del result[f"der({c.velocity})"]
+        for constraint, terms in zip(spec.constraints, derivation.constraints):
+            result[f"{constraint.name}_gap"] = of(terms.gap)
+            if constraint.compliant:
+                result["E_pot"] |= of(terms.gap)
+        result["E"] = result["E_kin"] | result["E_pot"]
+        result[EVENT_COUNTER] = set()
     return result
 
 

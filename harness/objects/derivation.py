@@ -17,7 +17,7 @@ import signal
 import threading
 import time
 from contextlib import contextmanager
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 import sympy as sp
@@ -36,6 +36,16 @@ class LinearModel:
 
 
 @dataclass
+class ConstraintTerms:
+    """Lagrange's equations of the first kind for one constraint g(q, t): its force lambda acts along
+    G = dg/dq, and along a motion g' = G v + dg/dt, g'' = G a + gamma."""
+    gap: sp.Expr
+    G: list[sp.Expr]                   # n
+    rate: sp.Expr                      # g'
+    gamma: sp.Expr                     # g'' - G a: the velocities' and time's part
+
+
+@dataclass
 class Derivation:
     spec: ObjectSpec
     M: sp.Matrix                       # n x n
@@ -48,6 +58,7 @@ class Derivation:
     U: sp.Expr
     linear: LinearModel | None
     linear_reason: str                 # why there is no linear model (empty when there is one)
+    constraints: list[ConstraintTerms] = field(default_factory=list)
 
     @property
     def n(self) -> int:
@@ -58,6 +69,8 @@ class Derivation:
         """Why the accelerations are not of the form a(q, t, F) - d v that Stormer-Verlet needs (a mass
         matrix that is constant, no velocity in f); empty when they are."""
         spec = self.spec
+        if spec.constraints:
+            return f"the constraint forces of {spec.identifier} depend on its velocities"
         moving = sorted(str(s) for s in self.M.free_symbols & (set(spec.q) | set(spec.v) | {spec.time}))
         if moving:
             return f"the mass matrix of {spec.identifier} depends on {', '.join(moving)}"
@@ -120,7 +133,44 @@ def derive(spec: ObjectSpec) -> Derivation:
     velocities = [[sp.diff(x, t) + sum(sp.diff(x, qj) * vj for qj, vj in zip(q, v)) for x in pos]
                   for pos in positions]
     linear, reason = _linearize(spec, M, T, U, Q, inputs)
-    return Derivation(spec, M, sp.Matrix(f), sp.Matrix(Q), inputs, positions, velocities, T, U, linear, reason)
+    constraints = [_constraint_terms(spec, c.gap) for c in spec.constraints]
+    _check_start_admissible(spec, constraints)
+    return Derivation(spec, M, sp.Matrix(f), sp.Matrix(Q), inputs, positions, velocities, T, U, linear, reason,
+                      constraints)
+
+
+def _constraint_terms(spec: ObjectSpec, gap: sp.Expr) -> ConstraintTerms:
+    q, v, t = spec.q, spec.v, spec.time
+    gap = _expand(gap)
+    G = [sp.diff(gap, qj) for qj in q]
+    rate = total_derivative(gap, q, v, [0] * len(q), t)
+    gamma = total_derivative(rate, q, v, [0] * len(q), t)  # with a = 0 only the velocities' part remains
+    return ConstraintTerms(gap, G, rate, gamma)
+
+
+# A rigid constraint's start must hold to this (SI units): a gap below -START_GAP_TOLERANCE is an overlap.
+START_GAP_TOLERANCE = 1e-12
+
+
+def _check_start_admissible(spec: ObjectSpec, terms: list[ConstraintTerms]) -> None:
+    """Every rigid constraint holds at the start values (the FMU checks it again for the values it is given)."""
+    values = _start_values(spec)
+    for constraint, term in zip(spec.constraints, terms):
+        if constraint.compliant:
+            continue
+        where = f"{spec.path}: constraints.{constraint.name}"
+        try:
+            gap, rate = (float(e.subs(values).evalf()) for e in (term.gap, term.rate))
+        except (TypeError, ValueError):
+            raise ObjectFileError(f"{where}: the gap is not a finite real number at the start values") from None
+        if not (np.isfinite(gap) and np.isfinite(rate)):
+            raise ObjectFileError(f"{where}: the gap is not finite at the start values")
+        if constraint.bilateral and (abs(gap) > START_GAP_TOLERANCE or abs(rate) > START_GAP_TOLERANCE):
+            raise ObjectFileError(f"{where}: the start values violate it (gap = {gap:.6g}, its rate = {rate:.6g}; "
+                                  f"a bilateral constraint needs both within {START_GAP_TOLERANCE:g})")
+        if gap < -START_GAP_TOLERANCE:
+            raise ObjectFileError(f"{where}: the start values violate it (gap = {gap:.6g}, allowed >= "
+                                  f"{-START_GAP_TOLERANCE:g})")
 
 
 # SymPy's simplify has no bound on its work: a 32-operation expression with a tenth power of a sum
@@ -257,6 +307,8 @@ def _check_positive(spec: ObjectSpec, M: sp.Matrix) -> None:
 def _linearize(spec: ObjectSpec, M: sp.Matrix, T: sp.Expr, U: sp.Expr, Q: list[sp.Expr],
                inputs: list[sp.Symbol]) -> tuple[LinearModel | None, str]:
     q, v, t = spec.q, spec.v, spec.time
+    if spec.constraints:
+        return None, "the object has constraints (its motion switches at contacts)"
     if spec.rheonomic:
         return None, "the object is driven (t appears in its energies or points)"
     at_rest = {qj: spec.rest[c.name] for qj, c in zip(q, spec.coordinates)}

@@ -19,9 +19,10 @@ from xml.sax.saxutils import quoteattr
 from harness.fmi.methods import COUNTERS, GBS_COLUMNS, METHODS, SOLVERS, TAYLOR_DEFAULT_ORDER, TAYLOR_ORDERS
 from harness.objects.dependencies import dependencies
 from harness.objects.derivation import Derivation
-from harness.objects.object_file import FRAMEWORK_PARAMETERS, ObjectFileError
+from harness.objects.object_file import EVENT_COUNTER, FRAMEWORK_PARAMETERS, ObjectFileError
 
-SOURCE_FILES = ("fmi2_functions.c", "core.c", "stepper.c", "instance.c", "integrators.c", "linear_model.c", "physics.c")
+SOURCE_FILES = ("fmi2_functions.c", "core.c", "stepper.c", "instance.c", "integrators.c", "linear_model.c", "constraints.c",
+                "physics.c")
 BASE = {"m": {"m": 1}, "kg": {"kg": 1}, "s": {"s": 1}, "rad": {"rad": 1}, "N": {"kg": 1, "m": 1, "s": -2},
         "J": {"kg": 1, "m": 2, "s": -2}, "W": {"kg": 1, "m": 2, "s": -3}, "Hz": {"s": -1}, "1": {},
         "deg": {"rad": 1}, "A": {"A": 1}, "K": {"K": 1}}
@@ -118,6 +119,15 @@ def variables(derivation: Derivation) -> list[Variable]:
                Variable("E_pot", "output", "continuous", initial="calculated", unit="J",
                         description="potential energy U"),
                Variable("E", "output", "continuous", initial="calculated", unit="J", description="total energy T + U")]
+    for constraint in spec.constraints:
+        gap, force = constraint.outputs
+        what = constraint.description or f"constraint {constraint.name}"
+        result.append(Variable(gap, "output", "continuous", initial="calculated", unit=constraint.unit,
+                               description=f"{what}: its gap {'(kept at 0)' if constraint.bilateral else '(>= 0 apart)'}"))
+        law = "its compliant law's force" if constraint.compliant else "its force lambda"
+        result.append(Variable(force, "output", "continuous", initial="calculated", unit=constraint.force_unit,
+                               description=f"{what}: {law} along the gap's gradient"
+                                           f"{'' if constraint.bilateral else ' (>= 0: it only pushes)'}"))
     result.append(Variable("solver", "parameter", "tunable", type="Enumeration", declared_type="Solver",
                            start=SOLVERS.index("rk4") + 1,
                            description="integration method of the Co-Simulation step; Model Exchange leaves the "
@@ -129,6 +139,11 @@ def variables(derivation: Derivation) -> list[Variable]:
                                            "in closed form per step"))
     result += [Variable(name, "output", "discrete", type="Integer", initial="calculated", description=description)
                for name, description in COUNTERS]
+    if spec.constraints:
+        result.append(Variable(EVENT_COUNTER, "output", "discrete", type="Integer", initial="calculated",
+                               description="events since initialization: impacts (one per contact that receives an "
+                                           "impulse), activations without impact, releases, and the onsets and ends "
+                                           "of compliant contacts"))
     # appended after the counters, so that the older value references stay
     result.append(Variable("taylor_order", "parameter", "tunable", type="Integer", start=TAYLOR_DEFAULT_ORDER,
                            min=TAYLOR_ORDERS[0], max=TAYLOR_ORDERS[1],
@@ -234,22 +249,25 @@ def dependency_attribute(listed: set[str] | None, index: dict[str, int]) -> str:
 def _document(derivation: Derivation, variable_list: list[Variable], units, guid: str) -> str:
     spec = derivation.spec
     sources = "".join(f'<File name="{f}"/>' for f in SOURCE_FILES)
+    # the derivatives of constrained motion switch with the active constraints: not offered yet
+    directional = "false" if spec.constraints else "true"
     lines = [
         '<?xml version="1.0" encoding="UTF-8"?>',
         f'<fmiModelDescription fmiVersion="2.0" modelName="{spec.identifier}"',
         f'  guid="{guid}"',
         f'  description={quoteattr(spec.description)}',
         '  generationTool="pendulum-fmus harness.objects" variableNamingConvention="structured" '
-        'numberOfEventIndicators="0">',
+        f'numberOfEventIndicators="{len(spec.constraints)}">',
         f'  <ModelExchange modelIdentifier="{spec.identifier}" canGetAndSetFMUstate="true" '
         'canSerializeFMUstate="true"',
         '    completedIntegratorStepNotNeeded="true" canNotUseMemoryManagementFunctions="false"',
-        '    providesDirectionalDerivative="true">',
+        f'    providesDirectionalDerivative="{directional}">',
         f'    <SourceFiles>{sources}</SourceFiles>',
         '  </ModelExchange>',
         f'  <CoSimulation modelIdentifier="{spec.identifier}" canHandleVariableCommunicationStepSize="true"',
         '    canInterpolateInputs="true" maxOutputDerivativeOrder="1" canGetAndSetFMUstate="true"',
-        '    canSerializeFMUstate="true" canNotUseMemoryManagementFunctions="false" providesDirectionalDerivative="true">',
+        f'    canSerializeFMUstate="true" canNotUseMemoryManagementFunctions="false" '
+        f'providesDirectionalDerivative="{directional}">',
         f'    <SourceFiles>{sources}</SourceFiles>',
         '  </CoSimulation>',
         '  <UnitDefinitions>',

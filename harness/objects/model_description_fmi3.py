@@ -96,7 +96,7 @@ def from_fmi2(fmi2_text: str, needs: dict[str, set[str]] | None = None,
         for unknown in listing if listing is not None else []:
             v = by_index[int(unknown.get("index"))]
             if given is not None:
-                names = given[v.get("name")]
+                names = given.get(v.get("name"))
             elif unknown.get("dependencies") is not None:
                 names = {by_index[int(k)].get("name") for k in unknown.get("dependencies").split()}
             else:

@@ -36,13 +36,16 @@ FRAMEWORK_PARAMETERS = {
                             f"norm (gbs: tol >= {GBS_SMALLEST_TOL:g}); taylor keeps its last terms below tol (1 + |y|_inf); "
                             "taylor and gbs take the fixed step h at tol = 0, which rkf45 refuses"),
 }
-RESERVED = {"solver", "model", "taylor_order", "gbs_columns", *COUNTER_NAMES, "E_kin", "E_pot", "E", "t", "time"}
+EVENT_COUNTER = "n_events"  # the objects with constraints count their events
+RESERVED = {"solver", "model", "taylor_order", "gbs_columns", *COUNTER_NAMES, EVENT_COUNTER, "E_kin", "E_pot", "E", "t", "time"}
 FUNCTIONS = {name: getattr(sp, name) for name in (
     "sin", "cos", "tan", "asin", "acos", "atan", "atan2", "sinh", "cosh", "tanh", "exp", "log", "sqrt", "Abs")}
 FUNCTIONS["pi"] = sp.pi
 IDENTIFIER = re.compile(r"[A-Za-z][A-Za-z0-9_]*\Z")
 MAX_NESTING = 100  # parentheses in one expression: Python's parser and SymPy's recursion give up near 200
 AXES = ("x", "y", "z")
+# Which constraints are active is a bit set in the FMU state (a 32-bit integer).
+MAX_CONSTRAINTS = 31
 
 
 # The object file's format: each table's keys and what they mean. The reader allows exactly these keys,
@@ -62,6 +65,8 @@ FORMAT = {
                 "(default 0)",
         "require": "list of expressions in parameters, coordinates and t that must stay positive; where one is "
                    "not, the state is singular",
+        "constraints": "table of constraints, each `NAME = { gap = \"...\", ... }` (keys below): contacts, strings, "
+                       "walls and rods, with outputs `NAME_gap`, `NAME_force` and the counter `n_events`",
     },
     "parameters": {
         "start": "default value (required but for d, h and tol)",
@@ -90,6 +95,21 @@ FORMAT = {
         "names": "output names other than `<point>_x`, `<point>_v_x`, ...: `{ x = \"x2\", v_x = \"v_x\" }`",
         "description": "text for the point's outputs",
         "velocity": "false: no velocity outputs (default true)",
+    },
+    "constraints": {
+        "gap": "the gap g in parameters, coordinates and t (required): the motion keeps g >= 0 (unilateral) or "
+               "g = 0 (bilateral); its force acts along dg/dq",
+        "kind": "\"unilateral\" (default: the constraint only pushes) or \"bilateral\" (a rod or a guide: it "
+                "pushes and pulls)",
+        "restitution": "Newton's coefficient e of a rigid unilateral constraint: a number or a parameter's name, in "
+                       "[0, 1] (default 0); the gap's rate after an impact is -e times the rate before",
+        "stiffness": "makes the constraint compliant: the force k * delta**exponent * (1 + damping * d(delta)/dt) "
+                     "for the overlap delta = -g > 0 (Hertz, Hunt and Crossley), zero when apart, never pulling; a "
+                     "positive number or a parameter's name",
+        "exponent": "the compliant law's exponent, a number >= 1 (default 1.5, Hertz)",
+        "damping": "the compliant law's damping in s per gap unit, a number >= 0 or a parameter's name (default 0)",
+        "unit": "the gap's unit (default \"m\"; \"rad\" makes its force a torque in N.m)",
+        "description": "text for the constraint's outputs",
     },
     "forces": {
         "point": "the point the force acts on (required); inputs `<force>_x`, `<force>_y` (and `_z`)",
@@ -142,6 +162,31 @@ class Force:
 
 
 @dataclass
+class Constraint:
+    name: str
+    gap: sp.Expr                      # in parameters, coordinates and t
+    bilateral: bool = False
+    restitution: sp.Expr = sp.Integer(0)   # a number or a parameter's symbol, in [0, 1]
+    stiffness: sp.Expr | None = None       # compliant law (None: rigid)
+    exponent: float = 1.5
+    damping: sp.Expr = sp.Integer(0)
+    unit: str = "m"
+    description: str = ""
+
+    @property
+    def compliant(self) -> bool:
+        return self.stiffness is not None
+
+    @property
+    def force_unit(self) -> str:
+        return {"m": "N", "rad": "N.m"}.get(self.unit, "")
+
+    @property
+    def outputs(self) -> tuple[str, str]:
+        return f"{self.name}_gap", f"{self.name}_force"
+
+
+@dataclass
 class ObjectSpec:
     """One object as its file describes it, with every expression parsed into SymPy."""
     path: Path
@@ -155,6 +200,7 @@ class ObjectSpec:
     forces: list[Force]
     rest: dict[str, sp.Expr]          # rest state of the linear model (parameters allowed)
     require: list[sp.Expr]            # expressions that stay positive; the state is singular elsewhere
+    constraints: list[Constraint] = field(default_factory=list)
     symbols: dict[str, sp.Symbol] = field(repr=False, default_factory=dict)
 
     @property
@@ -456,11 +502,76 @@ def read_object_file(path: str | Path, text: str | None = None) -> ObjectSpec:
         if not expression.free_symbols:  # always true or always false: a mistake, never a condition
             raise reader.fail(f"require[{k}]", f"= {expression} depends on no parameter or coordinate")
 
+    constraints = _read_constraints(reader, reader.table(data, "constraints", required=False), claim, symbols,
+                                    parameters, params | q | t, q)
     spec = ObjectSpec(path, identifier, description, parameters, coordinates, T, U, points, forces, rest, require,
-                      symbols)
+                      constraints, symbols)
     if not points:
         raise reader.fail("points", "an object needs at least one point (its position is what a scene shows)")
     return spec
+
+
+def _read_constraints(reader: _Reader, table: dict, claim, symbols: dict, parameters: list[Parameter],
+                      allowed: set, q: set) -> list[Constraint]:
+    if len(table) > MAX_CONSTRAINTS:
+        raise reader.fail("constraints", f"{len(table)} constraints (at most {MAX_CONSTRAINTS})")
+    by_name = {p.name: p for p in parameters if p.name not in FRAMEWORK_PARAMETERS}
+    result = []
+    for name, entry in table.items():
+        where = f"constraints.{name}"
+        reader.name(name, where)
+        if not isinstance(entry, dict):
+            raise reader.fail(where, 'must be a table such as { gap = "y - R", restitution = 0.8 }')
+        reader.known_keys(entry, set(FORMAT["constraints"]), where)
+        if "gap" not in entry:
+            raise reader.fail(f"{where}.gap", "missing")
+        gap = reader.expression(entry["gap"], f"{where}.gap", symbols, allowed)
+        if not gap.free_symbols & q:
+            raise reader.fail(f"{where}.gap", f"= {gap} is not a function of the coordinates")
+        kind = reader.string(entry, "kind", f"{where}.kind", "unilateral")
+        if kind not in ("unilateral", "bilateral"):
+            raise reader.fail(f"{where}.kind", f"{kind!r}: must be \"unilateral\" or \"bilateral\"")
+        compliant = "stiffness" in entry
+        for key in ("exponent", "damping"):
+            if key in entry and not compliant:
+                raise reader.fail(f"{where}.{key}", "belongs to a compliant constraint: give its stiffness too")
+        if kind == "bilateral" and (compliant or "restitution" in entry):
+            raise reader.fail(f"{where}.{'stiffness' if compliant else 'restitution'}",
+                              "a bilateral constraint is rigid and never separates (no restitution, no stiffness)")
+        if compliant and "restitution" in entry:
+            raise reader.fail(f"{where}.restitution", "a compliant constraint loses energy by its damping, not by a "
+                                                      "restitution")
+
+        def coefficient(key: str, default: float, low: float, high: float | None, strict: bool = False) -> sp.Expr:
+            value = entry.get(key, default)
+            shown = f"[{low:g}, {high:g}]" if high is not None else f"{'> ' if strict else '>= '}{low:g}"
+            if isinstance(value, str) and IDENTIFIER.match(value) and value in by_name:
+                p = by_name[value]
+                if p.min is None or p.min < low or (strict and p.min <= low) or \
+                        (high is not None and (p.max is None or p.max > high)):
+                    raise reader.fail(f"{where}.{key}", f"parameter {value!r} may take values outside {shown}: "
+                                                        f"declare its min and max within it")
+                return symbols[value]
+            number = reader.number(entry, key, f"{where}.{key}", default) if not isinstance(value, str) else None
+            if number is None:
+                raise reader.fail(f"{where}.{key}", f"{value!r} is neither a number nor a parameter's name")
+            if number < low or (strict and number <= low) or (high is not None and number > high):
+                raise reader.fail(f"{where}.{key}", f"{number:g} is outside {shown}")
+            return sp.Float(number)
+
+        exponent = reader.number(entry, "exponent", f"{where}.exponent", 1.5)
+        if not 1.0 <= exponent <= 10.0:
+            raise reader.fail(f"{where}.exponent", f"{exponent:g} is outside [1, 10]")
+        result.append(Constraint(
+            name, gap, bilateral=kind == "bilateral",
+            restitution=coefficient("restitution", 0.0, 0.0, 1.0),
+            stiffness=coefficient("stiffness", 1.0, 0.0, None, strict=True) if compliant else None,
+            exponent=exponent, damping=coefficient("damping", 0.0, 0.0, None),
+            unit=reader.string(entry, "unit", f"{where}.unit", "m"),
+            description=reader.string(entry, "description", f"{where}.description", "")))
+        for output in result[-1].outputs:
+            claim(output, where)
+    return result
 
 
 def _replace_speed2(reader: _Reader, T, speed2, point_symbols, points, q, symbols):

@@ -1,0 +1,272 @@
+"""Constraints (Lagrange's equations of the first kind) and events, against solutions derived here
+independently of the generator: the bouncing ball's geometric series of bounces, the energy an impact
+takes, (1 - e^2) of the normal kinetic energy, a ball at rest on its floor carrying m g, a pendulum
+striking a wall against SciPy's event-located solution of the pendulum equation, and the pendulum
+written in Cartesian coordinates with a rod (a bilateral constraint) against the angle form and its
+rod tension m (L omega^2 + g cos phi)."""
+from __future__ import annotations
+
+import math
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+from fmpy import simulate_fmu
+from scipy.integrate import solve_ivp
+
+from harness.fmi.methods import SOLVERS
+from harness.objects.derivation import derive
+from harness.objects.object_file import ObjectFileError, read_object_file
+
+ROOT = Path(__file__).resolve().parent.parent
+
+BALL = """
+identifier = "Ball"
+description = "a ball bouncing on a floor"
+[parameters]
+g = { start = 9.81, unit = "m/s2", min = 0.0 }
+m = { start = 2.0, unit = "kg", min = 1e-9 }
+R = { start = 0.1, unit = "m", min = 0.0 }
+e = { start = 0.8, unit = "1", min = 0.0, max = 1.0 }
+[coordinates]
+x = { start = 0.0, unit = "m", velocity = "vx", velocity_start = 0.5 }
+y = { start = 1.0, unit = "m", velocity = "vy" }
+[energy]
+T = "m/2*(vx**2 + vy**2)"
+U = "m*g*y"
+[points]
+ball = { x = "x", y = "y" }
+[constraints]
+floor = { gap = "y - R", restitution = "e" }
+"""
+
+# The wall stands at angle phi_wall on the side the pendulum swings to: the gap is an angle.
+WALL = """
+identifier = "WallPendulum"
+description = "a pendulum striking a wall"
+[parameters]
+g = { start = 9.81, unit = "m/s2", min = 0.0 }
+L = { start = 1.0, unit = "m", min = 1e-9 }
+m = { start = 1.0, unit = "kg", min = 1e-9 }
+phi_wall = { start = 0.3, unit = "rad" }
+e = { start = 0.9, unit = "1", min = 0.0, max = 1.0 }
+[coordinates]
+phi = { start = -1.0, unit = "rad", velocity = "omega" }
+[energy]
+T = "m/2*L**2*omega**2"
+U = "-m*g*L*cos(phi)"
+[points]
+bob = { x = "L*sin(phi)", y = "-L*cos(phi)" }
+[constraints]
+wall = { gap = "phi_wall - phi", restitution = "e", unit = "rad" }
+"""
+
+# The simple pendulum as an index-3 DAE: the bob's Cartesian position and a rod of length L.
+ROD = """
+identifier = "RodPendulum"
+description = "a point mass on a rod, in Cartesian coordinates"
+[parameters]
+g = { start = 9.81, unit = "m/s2", min = 0.0 }
+L = { start = 1.0, unit = "m", min = 1e-9 }
+m = { start = 1.0, unit = "kg", min = 1e-9 }
+[coordinates]
+x = { start = 0.479425538604203, unit = "m", velocity = "vx" }
+y = { start = -0.8775825618903728, unit = "m", velocity = "vy" }
+[energy]
+T = "m/2*(vx**2 + vy**2)"
+U = "m*g*y"
+[points]
+bob = { x = "x", y = "y", velocity = false }
+[constraints]
+rod = { gap = "L - sqrt(x**2 + y**2)", kind = "bilateral" }
+"""
+
+
+@pytest.fixture(scope="module")
+def derived(tmp_path_factory):
+    """The FMUs of the three objects, built by `harness derive` as a user builds theirs."""
+    folder = tmp_path_factory.mktemp("constrained")
+    paths = {}
+    for name, text in (("Ball", BALL), ("WallPendulum", WALL), ("RodPendulum", ROD)):
+        source = folder / f"{name}.toml"
+        source.write_text(text)
+        result = subprocess.run([sys.executable, "-m", "harness", "derive", str(source), "--out", str(folder)],
+                                capture_output=True, text=True, cwd=ROOT)
+        assert result.returncode == 0, result.stderr
+        paths[name] = folder / f"{name}.fmu"
+    return paths
+
+
+def _settings(solver: str, h: float, **others) -> dict:
+    return {"solver": SOLVERS.index(solver) + 1, "h": h, "tol": 0.0, **others}
+
+
+# ---------------------------------------------------------------- the bouncing ball, exactly
+
+G, E, R, Y0 = 9.81, 0.8, 0.1, 1.0
+
+
+def _bounces(e: float = E, rest_speed: float = 1e-3):
+    """Impact times and the upward speeds after them, to the last rebound faster than rest_speed."""
+    t = math.sqrt(2 * (Y0 - R) / G)
+    v = G * t
+    times, speeds = [], []
+    while e * v >= rest_speed:
+        v *= e
+        times.append(t)
+        speeds.append(v)
+        t += 2 * v / G
+    return times, speeds, t  # t: where the ball lands for good
+
+
+def _height(t: float) -> float:
+    times, speeds, rest = _bounces()
+    if t < times[0]:
+        return Y0 - G * t * t / 2
+    for start, speed, end in zip(times, speeds, times[1:] + [rest]):
+        if t < end:
+            s = t - start
+            return R + speed * s - G * s * s / 2
+    return R
+
+
+@pytest.mark.parametrize("solver", ["heun", "rk4", "nystrom5", "ab3", "abm4", "gauss_legendre4", "trapezoid"])
+def test_the_ball_bounces_where_the_geometric_series_says(derived, solver):
+    """Free flight is a parabola, which every method of order >= 2 integrates exactly: what is left is
+    the location of the impacts, found to rounding."""
+    times = np.linspace(0.0, 3.0, 61)
+    result = simulate_fmu(derived["Ball"], stop_time=3.0, output_interval=0.05, start_values=_settings(solver, 0.003),
+                          output=["y", "floor_gap", "n_events"])
+    expected = np.array([_height(t) for t in times])
+    assert np.max(np.abs(result["y"] - expected)) < 1e-11
+    assert np.allclose(result["floor_gap"], result["y"] - R, atol=1e-15)
+    assert result["n_events"][-1] == sum(1 for t in _bounces()[0] if t <= 3.0)
+
+
+def test_an_impact_takes_one_minus_e_squared_of_the_normal_kinetic_energy(derived):
+    first = _bounces()[0][0]
+    before = simulate_fmu(derived["Ball"], stop_time=first - 0.01, output_interval=0.01,
+                          start_values=_settings("rk4", 0.001), output=["E", "vy"])
+    after = simulate_fmu(derived["Ball"], stop_time=first + 0.01, output_interval=0.01,
+                         start_values=_settings("rk4", 0.001), output=["E", "vy"])
+    m = 2.0
+    speed = G * first
+    lost = before["E"][-1] - after["E"][-1]
+    assert lost == pytest.approx((1 - E ** 2) * m * speed ** 2 / 2, rel=1e-12)
+
+
+def test_the_ball_comes_to_rest_after_finitely_many_events(derived):
+    """Rebounds slower than 1e-3 m/s end at rest: the floor turns active and carries the weight."""
+    times, speeds, rest = _bounces()
+    result = simulate_fmu(derived["Ball"], stop_time=rest + 1.0, output_interval=0.5,
+                          start_values=_settings("rk4", 0.004), output=["y", "vy", "floor_force", "n_events"])
+    assert result["y"][-1] == pytest.approx(R, abs=1e-12)
+    assert abs(result["vy"][-1]) < 1e-12
+    assert result["floor_force"][-1] == pytest.approx(2.0 * G, rel=1e-12)
+    # each rebound is an event, and the last landing one more (the floor turns active)
+    assert result["n_events"][-1] == len(times) + 1
+
+
+def test_model_exchange_shows_the_impacts_to_an_importer(derived):
+    """fmpy's CVode sees the event indicators, and event mode makes the velocity jump."""
+    result = simulate_fmu(derived["Ball"], fmi_type="ModelExchange", solver="CVode", stop_time=2.0,
+                          output_interval=0.05, relative_tolerance=1e-10, output=["y", "n_events"])
+    expected = np.array([_height(t) for t in result["time"]])
+    assert np.max(np.abs(result["y"] - expected)) < 1e-6
+    assert result["n_events"][-1] == sum(1 for t in _bounces()[0] if t <= 2.0)
+
+
+# ---------------------------------------------------------------- a pendulum striking a wall
+
+def _wall_reference(t_end: float, phi0=-1.0, wall=0.3, e=0.9, g=9.81, L=1.0):
+    """The pendulum equation written here, integrated by SciPy to 1e-13 with the wall as an event."""
+    def rhs(t, y):
+        return [y[1], -g / L * math.sin(y[0])]
+
+    def hit(t, y):
+        return wall - y[0]
+    hit.terminal, hit.direction = True, -1
+    t, y, impacts = 0.0, [phi0, 0.0], []
+    while t < t_end:
+        solution = solve_ivp(rhs, (t, t_end), y, method="DOP853", rtol=1e-13, atol=1e-14, events=hit)
+        if solution.status == 1:
+            t = solution.t_events[0][0]
+            y = [wall, -e * solution.y_events[0][0][1]]
+            impacts.append(t)
+        else:
+            return solution.y[:, -1], impacts
+    return np.array(y), impacts
+
+
+@pytest.mark.parametrize("solver, order", [("euler", 1), ("heun", 2), ("rk3", 3), ("rk4", 4), ("nystrom5", 5),
+                                           ("ab2", 2), ("ab4", 4), ("implicit_midpoint", 2)])
+def test_each_method_keeps_its_order_through_impacts(derived, solver, order):
+    """The event is found on the method's own step, so the error after several impacts still falls as h^p."""
+    reference, impacts = _wall_reference(3.0)
+    assert len(impacts) >= 2
+    errors = []
+    steps = (0.02, 0.01, 0.005) if order >= 3 else (0.004, 0.002, 0.001)
+    for h in steps:
+        result = simulate_fmu(derived["WallPendulum"], stop_time=3.0, output_interval=0.5,
+                              start_values=_settings(solver, h), output=["phi", "omega", "n_events"])
+        assert result["n_events"][-1] == len(impacts)
+        errors.append(abs(result["phi"][-1] - reference[0]) + abs(result["omega"][-1] - reference[1]))
+    measured = math.log2(errors[1] / errors[2])
+    assert abs(measured - order) < 0.3, (errors, measured)
+
+
+# ---------------------------------------------------------------- a rod as a bilateral constraint
+
+def test_a_rod_in_cartesian_coordinates_swings_like_the_angle_form(derived):
+    """phi = atan2(x, -y) follows the simple pendulum's equation; the rod's force is its tension."""
+    phi0 = 0.5
+    result = simulate_fmu(derived["RodPendulum"], stop_time=2.0, output_interval=0.1,
+                          start_values=_settings("rk4", 0.001), output=["x", "y", "vx", "vy", "rod_gap", "rod_force"])
+    solution = solve_ivp(lambda t, s: [s[1], -9.81 * math.sin(s[0])], (0, 2.0), [phi0, 0.0], method="DOP853",
+                         rtol=1e-13, atol=1e-14, t_eval=result["time"])
+    phi = np.arctan2(result["x"], -result["y"])
+    assert np.max(np.abs(phi - solution.y[0])) < 1e-9
+    assert np.max(np.abs(result["rod_gap"])) < 1e-14  # projected back to rounding
+    omega = solution.y[1]
+    tension = 1.0 * (1.0 * omega ** 2 + 9.81 * np.cos(solution.y[0]))
+    # lambda acts along dg/dq, which points inward (the gap shrinks outward): it is the tension
+    assert np.max(np.abs(result["rod_force"] - tension)) < 1e-7
+
+
+# ---------------------------------------------------------------- what a file may not say
+
+@pytest.mark.parametrize("line, message", [
+    ('floor = { gap = "y - R", restitution = 1.5 }', "constraints.floor.restitution: 1.5 is outside [0, 1]"),
+    ('floor = { gap = "vy - R" }', "constraints.floor.gap: 'vy' may not appear here"),
+    ('floor = { gap = "R - 1" }', "constraints.floor.gap: = R - 1 is not a function of the coordinates"),
+    ('floor = { gap = "y - R", restitution = "g" }', "parameter 'g' may take values outside [0, 1]"),
+    ('floor = { gap = "y - R", kind = "sideways" }', "constraints.floor.kind: 'sideways'"),
+    ('floor = { gap = "y - R", kind = "bilateral", restitution = 0.5 }', "a bilateral constraint is rigid"),
+    ('floor = { gap = "y - R", exponent = 1.5 }', "belongs to a compliant constraint"),
+])
+def test_a_constraint_that_cannot_be_derived_is_named(line, message):
+    text = BALL.replace('floor = { gap = "y - R", restitution = "e" }', line)
+    with pytest.raises(ObjectFileError, match=None) as caught:
+        read_object_file("Ball.toml", text)
+    assert message in str(caught.value) and "\n" not in str(caught.value)
+
+
+def test_a_start_that_violates_a_rigid_constraint_is_refused_with_exit_code_2(tmp_path):
+    source = tmp_path / "Ball.toml"
+    source.write_text(BALL.replace('y = { start = 1.0,', 'y = { start = 0.05,'))
+    with pytest.raises(ObjectFileError, match=r"constraints.floor: the start values violate it \(gap = -0.05"):
+        derive(read_object_file(source))
+    result = subprocess.run([sys.executable, "-m", "harness", "derive", str(source), "--out", str(tmp_path)],
+                            capture_output=True, text=True, cwd=ROOT)
+    assert result.returncode == 2
+    assert "constraints.floor: the start values violate it" in result.stderr
+    assert "Traceback" not in result.stderr and not list(tmp_path.glob("*.fmu"))
+
+
+def test_the_fmu_refuses_a_start_inside_the_floor(derived):
+    """The start values the importer sets are checked again at the end of initialization."""
+    with pytest.raises(Exception, match="fmi2ExitInitializationMode"):
+        simulate_fmu(derived["Ball"], stop_time=0.1, start_values={"y": 0.05},
+                     logger=lambda *args: None)
