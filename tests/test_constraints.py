@@ -270,3 +270,89 @@ def test_the_fmu_refuses_a_start_inside_the_floor(derived):
     with pytest.raises(Exception, match="fmi2ExitInitializationMode"):
         simulate_fmu(derived["Ball"], stop_time=0.1, start_values={"y": 0.05},
                      logger=lambda *args: None)
+
+
+# ---------------------------------------------------------------- compliant contact
+
+HERTZ = BALL.replace('floor = { gap = "y - R", restitution = "e" }',
+                     'floor = { gap = "y - R", stiffness = "k", exponent = 1.5 }').replace(
+    'e = { start = 0.8, unit = "1", min = 0.0, max = 1.0 }',
+    'k = { start = 1e5, min = 1e-9, description = "Hertz stiffness, N/m^1.5" }')
+
+
+def test_a_compliant_contact_stores_and_returns_the_energy(tmp_path):
+    """Without damping a Hertz contact is elastic: the ball leaves as fast as it came, E (the overlap's
+    stored energy included) stays, and the onset and the end of each contact are events."""
+    source = tmp_path / "Ball.toml"
+    source.write_text(HERTZ)
+    result = subprocess.run([sys.executable, "-m", "harness", "derive", str(source), "--out", str(tmp_path)],
+                            capture_output=True, text=True, cwd=ROOT)
+    assert result.returncode == 0, result.stderr
+    first = math.sqrt(2 * (Y0 - R) / G)
+    run = simulate_fmu(tmp_path / "Ball.fmu", stop_time=2 * first + 0.05, output_interval=0.001,
+                       start_values=_settings("rk4", 2e-4), output=["y", "vy", "E", "floor_gap", "floor_force",
+                                                                   "n_events"])
+    assert run["n_events"][-1] == 2
+    # the deepest overlap stores the impact's kinetic energy: k delta^2.5 / 2.5 = m v^2 / 2 (gravity aside)
+    deepest = (2.5 * 2.0 * (G * first) ** 2 / 2 / 1e5) ** (1 / 2.5)
+    assert -np.min(run["floor_gap"]) == pytest.approx(deepest, rel=2e-2)
+    assert np.max(run["floor_force"]) == pytest.approx(1e5 * deepest ** 1.5, rel=5e-2)
+    # E is kept to rk4's error. Hertz's delta^1.5 has unbounded higher derivatives at the onset, so with
+    # fixed steps the error falls as about h^2.5 there (not h^4), however exactly the onset is found.
+    drifts = []
+    for h in (2e-4, 1e-4):
+        rerun = simulate_fmu(tmp_path / "Ball.fmu", stop_time=2 * first + 0.05, output_interval=0.05,
+                             start_values=_settings("rk4", h), output=["E"])
+        drifts.append(abs(rerun["E"][-1] - rerun["E"][0]))
+    assert math.log2(drifts[0] / drifts[1]) > 1.8, drifts
+    assert drifts[1] < 1e-8 * run["E"][0]
+    after = run["time"] > first + 0.1
+    assert np.max(run["y"][after]) == pytest.approx(Y0, abs=1e-5)  # back up to where it fell from
+
+
+# ---------------------------------------------------------------- event state in the FMU state
+
+def _instance(path: Path):
+    from fmpy import extract, read_model_description
+    from fmpy.fmi2 import FMU2Slave
+    description = read_model_description(path)
+    instance = FMU2Slave(guid=description.guid, unzipDirectory=extract(path),
+                         modelIdentifier=description.coSimulation.modelIdentifier, instanceName="ball")
+    references = {v.name: v.valueReference for v in description.modelVariables}
+    instance.instantiate()
+    instance.setReal([references["h"]], [0.004])
+    instance.setupExperiment(startTime=0.0)
+    instance.enterInitializationMode()
+    instance.exitInitializationMode()
+    return instance, references
+
+
+def test_the_active_constraints_survive_serialization(derived):
+    """At rest the floor is active (it carries m g); a serialized state brings that back in a new instance,
+    which then goes on resting without an event."""
+    rest = _bounces()[2]
+    first, references = _instance(derived["Ball"])
+    t = 0.0
+    while t < rest + 0.5:
+        first.doStep(t, 0.1)
+        t += 0.1
+    events = first.getInteger([references["n_events"]])[0]
+    blob = first.serializeFMUstate(first.getFMUstate())
+    second, _ = _instance(derived["Ball"])
+    second.setFMUstate(second.deSerializeFMUstate(blob))
+    for _ in range(10):
+        second.doStep(t, 0.1)
+        t += 0.1
+    y, force = second.getReal([references["y"], references["floor_force"]])
+    assert y == pytest.approx(R, abs=1e-12) and force == pytest.approx(2.0 * G, rel=1e-12)
+    assert second.getInteger([references["n_events"]])[0] == events
+    for instance in (first, second):
+        instance.terminate()
+        instance.freeInstance()
+
+
+def test_partial_derivatives_of_constrained_motion_are_refused_by_name(derived):
+    from fmpy import read_model_description
+    description = read_model_description(derived["Ball"])
+    assert description.coSimulation.providesDirectionalDerivative is False
+    assert description.numberOfEventIndicators == 1

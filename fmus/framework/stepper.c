@@ -387,7 +387,10 @@ static Status step_with_events(Instance *inst, const char *function, RightHandSi
             }
             memcpy(x0, x, sizeof x0);
             m0 = *memory;
-            indicators_at(&e, ta, x, z0);
+            indicators_at(&e, ta, x, z1);
+            for (k = 0; k < N_CONSTRAINTS; k++) /* a compliant contact's onset or end is an event of its own */
+                if (c->law[k].compliant && (z0[k] > 0.0) != (z1[k] > 0.0)) memory->n_events++;
+            memcpy(z0, z1, sizeof z0);
             any = 0;
             if (tb - ta > 4.0 * DBL_EPSILON * fabs(tb)) {
                 trial_step(&e, &m0, x0, ta, tb - ta, x);

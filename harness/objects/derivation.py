@@ -195,6 +195,8 @@ def _clock(seconds: float):
         return
 
     def out_of_time(signum, frame):
+        # again soon, should this one land where Python swallows exceptions (a gc callback, a __del__)
+        signal.setitimer(signal.ITIMER_REAL, 0.05)
         raise _OutOfTime
     outer = signal.getitimer(signal.ITIMER_REAL)[0]
     started = time.monotonic()
