@@ -95,6 +95,11 @@ def render(record: Record) -> str:
         "|a - b| / max(1, |a|) over every float output at every communication point, against what the",
         "criterion names; the reference results are in `docs/compatibility/` (how to reproduce them is below).",
         "",
+        "Known issue of an importer: OMSimulator 3.0 refuses every FMI 3.0 FMU of this project (\"erroneous",
+        "dependencies detected\"): it reads FMI 3.0 `dependencies`, which are value references, as FMI 2.0",
+        "indices. The way round: give it the FMI 2.0 FMUs, which it runs in agreement with the harness",
+        "([import into other tools](how-to/import-into-tools.md)).",
+        "",
         f"{len(rows)} rows: {counts['agrees']} agree, {counts['not run']} not run here (each with its reason), "
         f"{counts['fails']} fail.",
         "",
