@@ -238,6 +238,18 @@ Status core_setup(Instance *inst, const char *function, double start, int stop_d
     return STATUS_OK;
 }
 
+#if N_CONSTRAINTS > 0
+/* The current inputs in u, returned where any force acts, NULL where none does (the models' convention). */
+static const double *acting_inputs(const Instance *inst, double *u)
+{
+    int i;
+    gather_inputs(inst, u);
+    for (i = 0; i < N_INPUTS; i++)
+        if (u[i] != 0.0) return u;
+    return NULL;
+}
+#endif
+
 Status core_exit_initialization(Instance *inst, const char *function)
 {
     inst->constants_valid = 0;
@@ -278,11 +290,8 @@ Status core_exit_initialization(Instance *inst, const char *function)
     {
         char message[256];
         double u[INPUT_SLOTS];
-        int i, forces = 0;
-        gather_inputs(inst, u);
-        for (i = 0; i < N_INPUTS; i++) forces |= u[i] != 0.0;
         if (!start_constraints(&inst->constants, &inst->s.active_constraints, inst->s.time, inst->s.real,
-                               forces ? u : NULL, message, sizeof message)) {
+                               acting_inputs(inst, u), message, sizeof message)) {
             log_error(inst, "%s: %s", function, message);
             return STATUS_ERROR;
         }
@@ -876,12 +885,10 @@ Status core_get_event_indicators(Instance *inst, const char *function, double z[
 #if N_CONSTRAINTS > 0
     {
         double u[INPUT_SLOTS];
-        int i, forces = 0;
+        int i;
         if (!ensure_constants(inst, function)) return STATUS_ERROR;
-        gather_inputs(inst, u);
-        for (i = 0; i < N_INPUTS; i++) forces |= u[i] != 0.0;
         constraint_indicators(&inst->constants, inst->s.active_constraints, inst->s.time, inst->s.real,
-                              forces ? u : NULL, z);
+                              acting_inputs(inst, u), z);
         /* a rigid gap's event lies just past contact (as in Co-Simulation), so that the state an impact leaves
          * behind is not taken for the next event */
         for (i = 0; i < N_CONSTRAINTS; i++)
@@ -902,13 +909,10 @@ Status core_new_discrete_states(Instance *inst, const char *function, int *state
     {
         double u[INPUT_SLOTS], before[N_STATES];
         const int32_t active = inst->s.active_constraints;
-        int i, forces = 0;
         if (!ensure_constants(inst, function)) return STATUS_ERROR;
-        gather_inputs(inst, u);
-        for (i = 0; i < N_INPUTS; i++) forces |= u[i] != 0.0;
         memcpy(before, inst->s.real, sizeof before);
         if (!resolve_events(&inst->constants, &inst->s.active_constraints, inst->s.time, inst->s.real,
-                            forces ? u : NULL, &inst->s.integrator.n_events) ||
+                            acting_inputs(inst, u), &inst->s.integrator.n_events) ||
             !project_constraints(&inst->constants, inst->s.active_constraints, inst->s.time, inst->s.real)) {
             memcpy(inst->s.real, before, sizeof before);
             inst->s.active_constraints = active;

@@ -302,11 +302,6 @@ static double locate_event(const EventStepper *e, const IntegratorMemory *memory
     return hi;
 }
 
-static int state_finite(const Instance *inst, const double *x)
-{
-    return model_state_ok(&inst->constants, x);
-}
-
 static Status step_with_events(Instance *inst, const char *function, RightHandSide *f, int solver, double t, double H)
 {
     SimState *s = &inst->s;
@@ -356,7 +351,7 @@ static Status step_with_events(Instance *inst, const char *function, RightHandSi
         } else {
             integrate_fixed(f, solver, memory, x, t, hs, i, 1, 0);
         }
-        if (!state_finite(inst, x)) {
+        if (!model_state_ok(c, x)) {
             memcpy(x, x0, sizeof x0);
             *memory = m0;
             count_work(memory, f);
@@ -370,7 +365,7 @@ static Status step_with_events(Instance *inst, const char *function, RightHandSi
             *memory = m0;
             memory->ab_count = 0;
             if (!resolve_events(c, &s->active_constraints, ta, x, inputs_at(f, ta, u), &memory->n_events) ||
-                !project_constraints(c, s->active_constraints, ta, x) || !state_finite(inst, x)) {
+                !project_constraints(c, s->active_constraints, ta, x) || !model_state_ok(c, x)) {
                 count_work(memory, f);
                 finish(inst, t, ta - t, ta);
                 log_discard(inst, "%s: the constraints at t = %.17g are dependent (an impact or a contact force has no "
