@@ -10,6 +10,7 @@ import sys
 from pathlib import Path
 
 import pytest
+from fmpy import read_model_description
 
 from harness.fmi.fmus import FMU_NAMES
 
@@ -66,5 +67,14 @@ def test_every_function_in_every_state(fmu_paths, unzipped, name, kind, state):
         allowed = state in ALLOWED[function][0 if kind == "CS" else 1]
         if not allowed:
             assert status == 3 and "illegal call sequence" in message, (function, status, message)
+        elif function == "fmi2GetDirectionalDerivative" and not provides_partial_derivatives(fmu_paths[name], kind):
+            assert status == 3 and "provides no partial derivatives" in message, (function, status, message)
         else:
             assert status < 3, (function, status, message)
+
+
+def provides_partial_derivatives(path: Path, kind: str) -> bool:
+    """What the model description declares (the objects with constraints provide none)."""
+    description = read_model_description(str(path))
+    interface = description.coSimulation if kind == "CS" else description.modelExchange
+    return bool(interface.providesDirectionalDerivative)

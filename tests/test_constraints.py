@@ -20,6 +20,8 @@ from harness.fmi.methods import SOLVERS
 from harness.objects.derivation import derive
 from harness.objects.object_file import ObjectFileError, read_object_file
 
+from conftest import derive_contact_objects
+
 ROOT = Path(__file__).resolve().parent.parent
 
 BALL = """
@@ -42,61 +44,12 @@ ball = { x = "x", y = "y" }
 floor = { gap = "y - R", restitution = "e" }
 """
 
-# The wall stands at angle phi_wall on the side the pendulum swings to: the gap is an angle.
-WALL = """
-identifier = "WallPendulum"
-description = "a pendulum striking a wall"
-[parameters]
-g = { start = 9.81, unit = "m/s2", min = 0.0 }
-L = { start = 1.0, unit = "m", min = 1e-9 }
-m = { start = 1.0, unit = "kg", min = 1e-9 }
-phi_wall = { start = 0.3, unit = "rad" }
-e = { start = 0.9, unit = "1", min = 0.0, max = 1.0 }
-[coordinates]
-phi = { start = -1.0, unit = "rad", velocity = "omega" }
-[energy]
-T = "m/2*L**2*omega**2"
-U = "-m*g*L*cos(phi)"
-[points]
-bob = { x = "L*sin(phi)", y = "-L*cos(phi)" }
-[constraints]
-wall = { gap = "phi_wall - phi", restitution = "e", unit = "rad" }
-"""
-
-# The simple pendulum as an index-3 DAE: the bob's Cartesian position and a rod of length L.
-ROD = """
-identifier = "RodPendulum"
-description = "a point mass on a rod, in Cartesian coordinates"
-[parameters]
-g = { start = 9.81, unit = "m/s2", min = 0.0 }
-L = { start = 1.0, unit = "m", min = 1e-9 }
-m = { start = 1.0, unit = "kg", min = 1e-9 }
-[coordinates]
-x = { start = 0.479425538604203, unit = "m", velocity = "vx" }
-y = { start = -0.8775825618903728, unit = "m", velocity = "vy" }
-[energy]
-T = "m/2*(vx**2 + vy**2)"
-U = "m*g*y"
-[points]
-bob = { x = "x", y = "y", velocity = false }
-[constraints]
-rod = { gap = "L - sqrt(x**2 + y**2)", kind = "bilateral" }
-"""
-
-
 @pytest.fixture(scope="module")
 def derived(tmp_path_factory):
-    """The FMUs of the three objects, built by `harness derive` as a user builds theirs."""
-    folder = tmp_path_factory.mktemp("constrained")
-    paths = {}
-    for name, text in (("Ball", BALL), ("WallPendulum", WALL), ("RodPendulum", ROD)):
-        source = folder / f"{name}.toml"
-        source.write_text(text)
-        result = subprocess.run([sys.executable, "-m", "harness", "derive", str(source), "--out", str(folder)],
-                                capture_output=True, text=True, cwd=ROOT)
-        assert result.returncode == 0, result.stderr
-        paths[name] = folder / f"{name}.fmu"
-    return paths
+    """The objects modelDescription/contact/ holds, under the names these tests use."""
+    paths = derive_contact_objects(tmp_path_factory.mktemp("constrained"), "BouncingBall", "WallPendulum",
+                                   "CartesianPendulum")
+    return {"Ball": paths["BouncingBall"], "WallPendulum": paths["WallPendulum"], "RodPendulum": paths["CartesianPendulum"]}
 
 
 def _settings(solver: str, h: float, **others) -> dict:
@@ -106,6 +59,7 @@ def _settings(solver: str, h: float, **others) -> dict:
 # ---------------------------------------------------------------- the bouncing ball, exactly
 
 G, E, R, Y0 = 9.81, 0.8, 0.1, 1.0
+BALL_MASS = 1.0  # modelDescription/contact/BouncingBall.toml
 
 
 def _bounces(e: float = E, rest_speed: float = 1e-3):
@@ -151,7 +105,7 @@ def test_an_impact_takes_one_minus_e_squared_of_the_normal_kinetic_energy(derive
                           start_values=_settings("rk4", 0.001), output=["E", "vy"])
     after = simulate_fmu(derived["Ball"], stop_time=first + 0.01, output_interval=0.01,
                          start_values=_settings("rk4", 0.001), output=["E", "vy"])
-    m = 2.0
+    m = BALL_MASS
     speed = G * first
     lost = before["E"][-1] - after["E"][-1]
     assert lost == pytest.approx((1 - E ** 2) * m * speed ** 2 / 2, rel=1e-12)
@@ -164,7 +118,7 @@ def test_the_ball_comes_to_rest_after_finitely_many_events(derived):
                           start_values=_settings("rk4", 0.004), output=["y", "vy", "floor_force", "n_events"])
     assert result["y"][-1] == pytest.approx(R, abs=1e-12)
     assert abs(result["vy"][-1]) < 1e-12
-    assert result["floor_force"][-1] == pytest.approx(2.0 * G, rel=1e-12)
+    assert result["floor_force"][-1] == pytest.approx(BALL_MASS * G, rel=1e-12)
     # each rebound is an event, and the last landing one more (the floor turns active)
     assert result["n_events"][-1] == len(times) + 1
 
@@ -344,7 +298,7 @@ def test_the_active_constraints_survive_serialization(derived):
         second.doStep(t, 0.1)
         t += 0.1
     y, force = second.getReal([references["y"], references["floor_force"]])
-    assert y == pytest.approx(R, abs=1e-12) and force == pytest.approx(2.0 * G, rel=1e-12)
+    assert y == pytest.approx(R, abs=1e-12) and force == pytest.approx(BALL_MASS * G, rel=1e-12)
     assert second.getInteger([references["n_events"]])[0] == events
     for instance in (first, second):
         instance.terminate()

@@ -155,6 +155,20 @@ static int forces_at(const ModelConst *c, int32_t active, double t, const double
     return constraint_forces(c, active, t, x, dx, lambda);
 }
 
+/* Whether constraint i (rigid, unilateral, touching at rest, not in `active`) would be pushed: its gap closes
+ * under the motion it leaves free faster than REST_ACCELERATION, and its force with `active` pushes. A pair
+ * that touches with no force between them (balls of a cradle at rest) stays open. */
+static int would_rest(const ModelConst *c, int32_t active, int i, double t, const double *x, const double *u)
+{
+    Geometry geo;
+    double dx[N_STATES], lambda[NC];
+    model_free_equations(c, t, x, u, dx);
+    if (!constraint_forces(c, active, t, x, dx, NULL)) return 0;
+    geometry_at(c, t, x, &geo);
+    return geo.gamma[i] + dot(geo.G[i], dx + NQ) < -REST_ACCELERATION &&
+           forces_at(c, active | (int32_t)1 << i, t, x, u, lambda) && lambda[i] > 0.0;
+}
+
 void constraint_indicators(const ModelConst *c, int32_t active, double t, const double *x, const double *u, double *z)
 {
     Geometry geo;
@@ -195,7 +209,7 @@ static int impulse(const ModelConst *c, int32_t active, double t, double *x, int
     return 1;
 }
 
-int resolve_events(const ModelConst *c, int32_t *active, double t, double *x, const double *u, uint64_t *events)
+static int resolve_events(const ModelConst *c, int32_t *active, double t, double *x, const double *u, uint64_t *events)
 {
     Geometry geo;
     double lambda[NC];
@@ -224,8 +238,7 @@ int resolve_events(const ModelConst *c, int32_t *active, double t, double *x, co
         for (i = 0; i < NC && !changed; i++) {
             const int32_t bit = (int32_t)1 << i;
             if (c->law[i].compliant || c->law[i].bilateral || (*active & bit)) continue;
-            if (geo.g[i] <= CONTACT_GAP && fabs(geo.rate[i]) < REST_SPEED &&
-                forces_at(c, *active | bit, t, x, u, lambda) && lambda[i] > 0.0) {
+            if (geo.g[i] <= CONTACT_GAP && fabs(geo.rate[i]) < REST_SPEED && would_rest(c, *active, i, t, x, u)) {
                 *active |= bit;
                 if (!impulse(c, *active, t, x, -1, 0.0)) return 0; /* its rate to zero with the others */
                 if (!(struck & bit)) (*events)++;
@@ -234,7 +247,7 @@ int resolve_events(const ModelConst *c, int32_t *active, double t, double *x, co
         }
         if (!changed && forces_at(c, *active, t, x, u, lambda))
             for (i = 0; i < NC && !changed; i++)
-                if (!c->law[i].compliant && !c->law[i].bilateral && (*active >> i & 1) && lambda[i] < 0.0) {
+                if (!c->law[i].compliant && !c->law[i].bilateral && (*active >> i & 1) && lambda[i] <= 0.0) {
                     *active &= ~((int32_t)1 << i);
                     (*events)++;
                     changed = 1;
@@ -244,14 +257,14 @@ int resolve_events(const ModelConst *c, int32_t *active, double t, double *x, co
     return 1;
 }
 
-int project_constraints(const ModelConst *c, int32_t active, double t, double *x)
+/* The positions onto g = 0 for the rigid constraints acting in `active` (Newton's iteration along M^-1 G^T). */
+static int project_positions(const ModelConst *c, int32_t active, double t, double *x)
 {
     Geometry geo;
     double L[NQ * NQ], r[NC], dq[NQ];
     int set[NC], m, p, j, iteration;
     m = acting(c, active, set);
     if (m == 0) return 1;
-    /* positions onto g = 0 (Newton's iteration along M^-1 G^T), then velocities onto g' = 0 */
     for (iteration = 0; iteration < 3; iteration++) {
         double largest = 0.0;
         geometry_at(c, t, x, &geo);
@@ -264,14 +277,58 @@ int project_constraints(const ModelConst *c, int32_t active, double t, double *x
         if (!cholesky(L, NQ) || !constrained_response(L, &geo, set, m, r, dq)) return 0;
         for (j = 0; j < NQ; j++) x[j] += dq[j];
     }
-    return impulse(c, active, t, x, -1, 0.0);
+    return 1;
+}
+
+int project_constraints(const ModelConst *c, int32_t active, double t, double *x)
+{
+    /* positions onto g = 0, then velocities onto g' = 0 */
+    return project_positions(c, active, t, x) && impulse(c, active, t, x, -1, 0.0);
+}
+
+int32_t departing_constraints(const ModelConst *c, int32_t active, double t, const double *x, const double *u)
+{
+    Geometry geo;
+    int32_t departing = 0;
+    int i;
+    geometry_at(c, t, x, &geo);
+    for (i = 0; i < NC; i++) {
+        const int32_t bit = (int32_t)1 << i;
+        if (c->law[i].compliant || c->law[i].bilateral || (active & bit)) continue;
+        if (fabs(geo.g[i]) <= CONTACT_GAP && geo.rate[i] >= -GAP_ROUNDING && !would_rest(c, active, i, t, x, u))
+            departing |= bit;
+    }
+    return departing;
+}
+
+int leave_boundary(const ModelConst *c, int32_t active, int32_t departing, double t, double *x)
+{
+    Geometry geo;
+    int32_t outside = 0, approaching = 0;
+    int i;
+    geometry_at(c, t, x, &geo);
+    for (i = 0; i < NC; i++)
+        if ((departing >> i & 1) && geo.g[i] < 0.0) outside |= (int32_t)1 << i;
+    if (!outside) return 1;
+    if (!project_positions(c, active | outside, t, x)) return 0;
+    geometry_at(c, t, x, &geo);
+    for (i = 0; i < NC; i++)
+        if ((outside >> i & 1) && geo.rate[i] < 0.0) approaching |= (int32_t)1 << i;
+    return impulse(c, active | approaching, t, x, -1, 0.0);
+}
+
+int handle_event(const ModelConst *c, int32_t *active, double t, double *x, const double *u, uint64_t *events)
+{
+    /* onto the constraints that held up to the event first: a constraint released there leaves from g = 0, not
+     * from the drift of the step that reached it (which would read as a new crossing at once) */
+    return project_constraints(c, *active, t, x) && resolve_events(c, active, t, x, u, events) &&
+           project_constraints(c, *active, t, x);
 }
 
 int start_constraints(const ModelConst *c, int32_t *active, double t, double *x, const double *u, char *message,
                       size_t size)
 {
     Geometry geo;
-    double lambda[NC];
     int i;
     geometry_at(c, t, x, &geo);
     *active = 0;
@@ -291,7 +348,7 @@ int start_constraints(const ModelConst *c, int32_t *active, double t, double *x,
         const int32_t bit = (int32_t)1 << i;
         if (c->law[i].compliant || c->law[i].bilateral) continue;
         if (fabs(geo.g[i]) <= START_GAP_TOLERANCE && fabs(geo.rate[i]) <= START_GAP_TOLERANCE &&
-            forces_at(c, *active | bit, t, x, u, lambda) && lambda[i] > 0.0)
+            would_rest(c, *active, i, t, x, u))
             *active |= bit;
     }
     return 1;

@@ -14,6 +14,9 @@ typedef struct {
  * force pushes, else the object leaves with zero normal speed, so contact sequences end after finitely
  * many events. */
 #define REST_SPEED 1e-3
+/* A touching constraint turns active only where the motion it leaves free would close it faster than this (gap
+ * units per second squared) and its force would push: touching without force stays open. */
+#define REST_ACCELERATION 1e-6
 /* Gaps within this of zero (gap units) touch: simultaneous impacts and activations take them in. */
 #define CONTACT_GAP 1e-9
 /* A rigid constraint's start must hold to this (SI units), bilateral ones also in their rate. */

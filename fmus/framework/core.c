@@ -911,9 +911,8 @@ Status core_new_discrete_states(Instance *inst, const char *function, int *state
         const int32_t active = inst->s.active_constraints;
         if (!ensure_constants(inst, function)) return STATUS_ERROR;
         memcpy(before, inst->s.real, sizeof before);
-        if (!resolve_events(&inst->constants, &inst->s.active_constraints, inst->s.time, inst->s.real,
-                            acting_inputs(inst, u), &inst->s.integrator.n_events) ||
-            !project_constraints(&inst->constants, inst->s.active_constraints, inst->s.time, inst->s.real)) {
+        if (!handle_event(&inst->constants, &inst->s.active_constraints, inst->s.time, inst->s.real,
+                          acting_inputs(inst, u), &inst->s.integrator.n_events)) {
             memcpy(inst->s.real, before, sizeof before);
             inst->s.active_constraints = active;
             log_error(inst, "%s: the constraints at t = %.17g are dependent (an impact or a contact force has no "

@@ -274,12 +274,19 @@ INTERNAL void constraint_indicators(const ModelConst *c, int32_t active, double 
                                     double *z);
 /* Whether indicator i's change from `before` to `after` is an event. */
 INTERNAL int indicator_crossed(const ModelConst *c, int i, double before, double after);
-/* At an event: impacts (Newton's restitution, simultaneous ones one contact at a time until none approaches),
- * then activations and releases; velocities jump, positions stay. Counts into events; 0 where singular. */
-INTERNAL int resolve_events(const ModelConst *c, int32_t *active, double t, double *x, const double *u,
-                            uint64_t *events);
 /* The acting rigid constraints back to g = 0 and g' = 0 (the drift of a step). */
 INTERNAL int project_constraints(const ModelConst *c, int32_t active, double t, double *x);
+/* An event: the state projected onto the constraints that held up to it; impacts (Newton's restitution,
+ * simultaneous ones one contact at a time until none approaches), then activations and releases (velocities
+ * jump, positions stay; counted into events); the state projected onto the constraints that hold after it. 0 where the constraints are dependent. */
+INTERNAL int handle_event(const ModelConst *c, int32_t *active, double t, double *x, const double *u,
+                          uint64_t *events);
+/* The rigid unilateral constraints that touch without approaching and whose force would not push: the exact
+ * motion leaves them (a string gone slack, a ball lifting off), so a step's dip across them is the method's
+ * error, not an event. */
+INTERNAL int32_t departing_constraints(const ModelConst *c, int32_t active, double t, const double *x, const double *u);
+/* Those of `departing` that the step left below g = 0 back onto it, their approaching rates to zero. */
+INTERNAL int leave_boundary(const ModelConst *c, int32_t active, int32_t departing, double t, double *x);
 /* The start values against the rigid constraints (0 with a message naming the one violated) and the
  * constraints active from the start. */
 INTERNAL int start_constraints(const ModelConst *c, int32_t *active, double t, double *x, const double *u,

@@ -201,6 +201,7 @@ typedef struct {
     RightHandSide *f;
     int solver, adaptive;
     double h, tol;
+    int32_t departing; /* constraints the step leaves: their crossings are the method's error (departing_constraints) */
 } EventStepper;
 
 static const double *inputs_at(const RightHandSide *f, double t, double *u)
@@ -232,7 +233,16 @@ static void trial_step(const EventStepper *e, const IntegratorMemory *memory, co
 
 static int crossed(const EventStepper *e, int k, double before, double after)
 {
-    return indicator_crossed(&e->inst->constants, k, before, after);
+    return !(e->departing >> k & 1) && indicator_crossed(&e->inst->constants, k, before, after);
+}
+
+/* The indicators at the start of a step from (t, x), and the constraints it departs from. */
+static void start_of_step(EventStepper *e, double t, const double *x, double *z)
+{
+    double u[INPUT_SLOTS];
+    indicators_at(e, t, x, z);
+    e->departing = departing_constraints(&e->inst->constants, e->inst->s.active_constraints, t, x,
+                                         inputs_at(e->f, t, u));
 }
 
 /* The first event in (t, t + span] from x0 (indicators z0 there), whose step of span crossed; leaves the
@@ -334,14 +344,16 @@ static Status step_with_events(Instance *inst, const char *function, RightHandSi
         if (memory->ab_count > 0 && fabs(hs - memory->ab_step) > 1e-10 * hs) memory->ab_count = 0;
         memory->ab_step = hs;
     }
-    indicators_at(&e, t, x, z0);
     for (i = 0; i < n; i++) {
         double ta = t + (double)i * hs;
         const double tb = i + 1 == n ? t_end : t + (double)(i + 1) * hs;
         double x0[STATE_SLOTS];
         IntegratorMemory m0 = *memory;
-        int any, k;
+        uint64_t events_seen = memory->n_events;
+        int32_t active_seen = s->active_constraints;
+        int any, k, stalls = 0;
         memcpy(x0, x, sizeof x0);
+        start_of_step(&e, ta, x, z0);
         if (e.adaptive) {
             if (adaptive_pass(f, solver, memory, x, ta, tb, e.h, e.tol, 0) < tb) {
                 memcpy(x, x0, sizeof x0);
@@ -364,12 +376,24 @@ static Status step_with_events(Instance *inst, const char *function, RightHandSi
             ta += theta;
             *memory = m0;
             memory->ab_count = 0;
-            if (!resolve_events(c, &s->active_constraints, ta, x, inputs_at(f, ta, u), &memory->n_events) ||
-                !project_constraints(c, s->active_constraints, ta, x) || !model_state_ok(c, x)) {
+            if (!handle_event(c, &s->active_constraints, ta, x, inputs_at(f, ta, u), &memory->n_events) ||
+                !model_state_ok(c, x)) {
                 count_work(memory, f);
                 finish(inst, t, ta - t, ta);
                 log_discard(inst, "%s: the constraints at t = %.17g are dependent (an impact or a contact force has no "
                             "unique solution); stopped there (last successful time %.17g)", function, ta, ta);
+                return STATUS_DISCARD;
+            }
+            /* an event found again where it was handled, changing nothing: stop rather than spin */
+            stalls = theta == 0.0 && memory->n_events == events_seen && s->active_constraints == active_seen ? stalls + 1 : 0;
+            events_seen = memory->n_events;
+            active_seen = s->active_constraints;
+            if (stalls > 2) {
+                count_work(memory, f);
+                finish(inst, t, ta - t, ta);
+                log_discard(inst, "%s: an event at t = %.17g recurs at once after it was handled (the state cannot leave "
+                            "the constraint's boundary with %s at h = %g); stopped there (last successful time %.17g)",
+                            function, ta, solver_name(solver), e.h, ta);
                 return STATUS_DISCARD;
             }
             if (memory->n_events - events_before > MAX_EVENTS_PER_CALL) {
@@ -382,7 +406,7 @@ static Status step_with_events(Instance *inst, const char *function, RightHandSi
             }
             memcpy(x0, x, sizeof x0);
             m0 = *memory;
-            indicators_at(&e, ta, x, z1);
+            start_of_step(&e, ta, x, z1);
             for (k = 0; k < N_CONSTRAINTS; k++) /* a compliant contact's onset or end is an event of its own */
                 if (c->law[k].compliant && (z0[k] > 0.0) != (z1[k] > 0.0)) memory->n_events++;
             memcpy(z0, z1, sizeof z0);
@@ -395,11 +419,11 @@ static Status step_with_events(Instance *inst, const char *function, RightHandSi
                 memcpy(z1, z0, sizeof z1);
             }
         }
-        if (!project_constraints(c, s->active_constraints, tb, x)) {
+        if (!leave_boundary(c, s->active_constraints, e.departing, tb, x) ||
+            !project_constraints(c, s->active_constraints, tb, x)) {
             count_work(memory, f);
             return fail(inst, function, t, ta, solver_name(solver), e.h, 0);
         }
-        memcpy(z0, z1, sizeof z0);
         if (inst->report_step && inst->s.machine_state == MS_STEP_COMPLETE) state_acceptable(inst, tb, x);
     }
     count_work(memory, f);

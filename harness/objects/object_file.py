@@ -550,7 +550,7 @@ def _read_constraints(reader: _Reader, table: dict, claim, symbols: dict, parame
                 if p.min is None or p.min < low or (strict and p.min <= low) or \
                         (high is not None and (p.max is None or p.max > high)):
                     raise reader.fail(f"{where}.{key}", f"parameter {value!r} may take values outside {shown}: "
-                                                        f"declare its min and max within it")
+                                                        f"declare its {'min and max' if high is not None else 'min'} within it")
                 return symbols[value]
             number = reader.number(entry, key, f"{where}.{key}", default) if not isinstance(value, str) else None
             if number is None:

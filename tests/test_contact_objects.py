@@ -1,0 +1,184 @@
+"""The registry's objects that touch, against solutions derived here from their physics alone: Newton's
+cradle from the pendulum's elliptic period and the textbook exchange of velocities (one in, one out; two
+in, two out), the string pendulum's slack point from its tension, its flight as a parabola and the jerk
+that takes its radial velocity, and the Hertz cradle against itself at a tenth of the step.
+(test_constraints.py proves the bouncing ball, the wall pendulum and the Cartesian pendulum.)"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+from fmpy import simulate_fmu
+from scipy.integrate import quad, solve_ivp
+from scipy.special import ellipk
+
+from harness.fmi.methods import FIXED_STEP, SOLVERS
+
+from conftest import derive_contact_objects
+
+G = 9.81
+CRADLE_L, CRADLE_PHI0 = 0.3, 0.5           # modelDescription/contact/NewtonsCradle.toml
+STRING_L, STRING_V0 = 1.0, 5.5             # modelDescription/contact/StringPendulum.toml
+BALLS = range(1, 6)
+
+
+@pytest.fixture(scope="module")
+def fmu_paths(tmp_path_factory):
+    return derive_contact_objects(tmp_path_factory.mktemp("contact"), "NewtonsCradle", "StringPendulum", "HertzCradle")
+
+
+def _settings(solver: str, h: float, **others) -> dict:
+    return {"solver": SOLVERS.index(solver) + 1, "h": h, "tol": 1e-12 if solver == "rkf45" else 0.0, **others}
+
+
+def _pendulum(phi: float, omega: float, duration: float, L: float) -> np.ndarray:
+    """The simple pendulum's equation, integrated here by SciPy to 1e-13."""
+    if duration == 0.0:
+        return np.array([phi, omega])
+    solution = solve_ivp(lambda t, s: [s[1], -G / L * math.sin(s[0])], (0.0, duration), [phi, omega],
+                         method="DOP853", rtol=1e-13, atol=1e-14)
+    return solution.y[:, -1]
+
+
+# ---------------------------------------------------------------- Newton's cradle, rigid
+
+QUARTER = ellipk(math.sin(CRADLE_PHI0 / 2) ** 2) * math.sqrt(CRADLE_L / G)  # a quarter of the pendulum's period
+IMPACT_SPEED = math.sqrt(2 * G / CRADLE_L * (1 - math.cos(CRADLE_PHI0)))      # omega where the ball strikes
+
+
+@pytest.fixture(scope="module")
+def cradle(fmu_paths):
+    def run(solver: str, h: float, stop: float, **starts):
+        names = [f"{kind}{i}" for i in BALLS for kind in ("phi", "omega")] + ["E", "n_events"]
+        return simulate_fmu(fmu_paths["NewtonsCradle"], stop_time=stop, output_interval=stop / 4,
+                            start_values=_settings(solver, h, **starts), output=names)
+    return run
+
+
+@pytest.mark.parametrize("solver", [s for s in FIXED_STEP if s != "stormer_verlet"] + ["rkf45"])
+def test_the_cradle_sends_one_ball_out_for_one_in(cradle, solver):
+    """Ball 1 strikes the row at the quarter period; ball 5 leaves with its speed, the others stay at rest
+    (exactly: the impulses go through the touching balls one contact at a time)."""
+    after = 0.1
+    run = cradle(solver, 1e-3 if solver not in ("euler", "midpoint", "heun") else 1e-4, QUARTER + after)
+    final = {name: run[name][-1] for name in run.dtype.names}
+    for i in (1, 2, 3, 4):
+        assert abs(final[f"phi{i}"]) < 1e-12 and abs(final[f"omega{i}"]) < 1e-12, (i, final)
+    assert final["n_events"] == 4  # one impulse per contact
+    expected = _pendulum(0.0, IMPACT_SPEED, after, CRADLE_L)
+    accuracy = 1e-9 if solver not in ("euler", "midpoint", "heun", "ab2", "abm2", "implicit_midpoint",
+                                      "trapezoid", "rk3", "ab3", "abm3") else 2e-3
+    assert abs(final["phi5"] - expected[0]) < accuracy and abs(final["omega5"] - expected[1]) < 10 * accuracy
+
+
+def test_two_balls_in_send_two_out(cradle):
+    run = cradle("rk4", 1e-3, QUARTER + 0.1, phi2=-CRADLE_PHI0)
+    final = {name: run[name][-1] for name in run.dtype.names}
+    for i in (1, 2, 3):
+        assert abs(final[f"phi{i}"]) < 1e-12 and abs(final[f"omega{i}"]) < 1e-12, (i, final)
+    expected = _pendulum(0.0, IMPACT_SPEED, 0.1, CRADLE_L)
+    for i in (4, 5):
+        assert abs(final[f"phi{i}"] - expected[0]) < 1e-9 and abs(final[f"omega{i}"] - expected[1]) < 1e-8
+
+
+def test_ten_periods_of_the_cradle_come_back_to_the_start_with_its_energy(cradle):
+    """The cradle's period is the pendulum's, four quarters: after ten, ball 1 is back where it was let go,
+    at rest, and the impacts (restitution 1) have kept the energy to the integration's error."""
+    periods = 10
+    run = cradle("nystrom5", 5e-4, 4 * QUARTER * periods)
+    assert run["phi1"][-1] == pytest.approx(-CRADLE_PHI0, abs=1e-9)
+    assert abs(run["omega1"][-1]) < 1e-8
+    assert all(abs(run[f"omega{i}"][-1]) < 1e-12 for i in (2, 3, 4, 5))
+    assert abs(run["E"][-1] - run["E"][0]) < 1e-10 * abs(run["E"][0])
+    assert run["n_events"][-1] == 4 * 2 * periods  # two strikes per period through four contacts
+
+
+# ---------------------------------------------------------------- the string pendulum (Fadenpendel)
+
+def _slack_point():
+    """Where the string's tension m (v^2 / L + g cos phi) reaches zero, and when (from the energy)."""
+    v0, L = STRING_V0, STRING_L
+    phi = math.acos((2 * G - v0 ** 2 / L) / (3 * G))
+    omega = lambda a: math.sqrt(v0 ** 2 / L ** 2 - 2 * G / L * (1 - math.cos(a)))  # noqa: E731
+    t, _ = quad(lambda a: 1.0 / omega(a), 0.0, phi, epsabs=1e-14, epsrel=1e-14)
+    return t, phi, omega(phi)
+
+
+@pytest.fixture(scope="module")
+def string(fmu_paths):
+    def run(solver: str, h: float, stop: float):
+        return simulate_fmu(fmu_paths["StringPendulum"], stop_time=stop, output_interval=stop / 2,
+                            start_values=_settings(solver, h),
+                            output=["x", "y", "vx", "vy", "string_gap", "string_force", "n_events"])
+    return run
+
+
+def _flight():
+    """The flight after the slack point: a parabola, from a velocity along the circle, until it meets the
+    circle again after 4 v_y / g (|r|^2 - L^2 = v_y g t^3 ... vanishes there: the t^2 term is zero where
+    the tension is)."""
+    t_slack, phi, omega = _slack_point()
+    position = STRING_L * np.array([math.sin(phi), -math.cos(phi)])
+    velocity = STRING_L * omega * np.array([math.cos(phi), math.sin(phi)])
+    return t_slack, position, velocity, 4 * velocity[1] / G
+
+
+@pytest.mark.parametrize("solver, h, accuracy", [("rk4", 1e-3, 1e-9), ("nystrom5", 2e-3, 1e-9),
+                                                 ("ab4", 5e-4, 1e-8), ("heun", 1e-4, 1e-5)])
+def test_the_string_goes_slack_where_its_tension_vanishes_and_flies_a_parabola(string, solver, h, accuracy):
+    t_slack, position, velocity, flight = _flight()
+    tau = 0.6 * flight
+    run = string(solver, h, t_slack + tau)
+    expected = position + velocity * tau + 0.5 * np.array([0.0, -G]) * tau ** 2
+    assert abs(run["x"][-1] - expected[0]) < accuracy and abs(run["y"][-1] - expected[1]) < accuracy
+    assert run["string_force"][-1] == 0.0 and run["string_gap"][-1] > 0.0
+    assert run["n_events"][-1] == 1  # the release
+
+
+def test_the_string_jerks_taut_and_swings_on_as_a_pendulum(string):
+    """Taut again (restitution 0): the radial velocity is gone, the tangential one swings on."""
+    t_slack, position, velocity, flight = _flight()
+    end = position + velocity * flight + 0.5 * np.array([0.0, -G]) * flight ** 2
+    assert math.hypot(*end) == pytest.approx(STRING_L, abs=1e-12)
+    phi = math.atan2(end[0], -end[1])
+    tangential = (velocity + np.array([0.0, -G]) * flight) @ np.array([math.cos(phi), math.sin(phi)])
+    later = 0.2
+    expected = _pendulum(phi, tangential / STRING_L, later, STRING_L)
+    run = string("rk4", 1e-3, t_slack + flight + later)
+    assert run["n_events"][-1] == 2
+    assert run["string_gap"][-1] == pytest.approx(0.0, abs=1e-13)
+    assert math.atan2(run["x"][-1], -run["y"][-1]) == pytest.approx(expected[0], abs=1e-8)
+    speed = (run["vx"][-1] * math.cos(expected[0]) + run["vy"][-1] * math.sin(expected[0])) / STRING_L
+    assert speed == pytest.approx(expected[1], abs=1e-7)
+
+
+@pytest.mark.parametrize("solver", ["euler", "midpoint", "heun", "ab2", "abm2", "implicit_midpoint", "trapezoid"])
+def test_low_order_methods_leave_the_slack_string_without_hanging(string, solver):
+    """A first- or second-order step from the slack point ends outside the circle (the exact flight is inside
+    by only (v g) t^3): that is the method's error, not a new event, and the call goes on."""
+    run = string(solver, 2e-3, 2.0)
+    assert run["n_events"][-1] >= 2
+    assert np.all(np.isfinite(run["x"]))
+
+
+# ---------------------------------------------------------------- the Hertz cradle
+
+def test_the_hertz_cradle_spreads_the_motion_and_keeps_its_energy(fmu_paths):
+    """Steel contacts last about 0.1 ms: rkf45 resolves them, and agrees with rk4 at a step of 2e-7 s.
+    Unlike the rigid cradle, the outgoing motion spreads over several balls (ball 1 rebounds a little)."""
+    names = [f"omega{i}" for i in BALLS] + ["E"]
+    stop = QUARTER + 0.1
+
+    def run(solver, **settings):
+        result = simulate_fmu(fmu_paths["HertzCradle"], stop_time=stop, output_interval=stop / 20,
+                              start_values={"solver": SOLVERS.index(solver) + 1, **settings}, output=names)
+        return np.array([result[name][-1] for name in names]), result["E"][0]
+
+    reference, energy = run("rk4", h=2e-7, tol=0.0)
+    adaptive, _ = run("rkf45", h=1e-3, tol=1e-10)
+    assert np.max(np.abs(adaptive[:5] - reference[:5])) < 1e-6 * IMPACT_SPEED
+    assert abs(reference[5] - energy) < 1e-9 * abs(energy)
+    assert reference[0] < -0.01 * IMPACT_SPEED          # ball 1 rebounds
+    assert 0.5 * IMPACT_SPEED < reference[4] < IMPACT_SPEED  # ball 5 leaves with most, not all
+    assert reference[3] > 0.01 * IMPACT_SPEED           # ball 4 follows
