@@ -7,6 +7,7 @@ rod tension m (L omega^2 + g cos phi)."""
 from __future__ import annotations
 
 import math
+import shutil
 import subprocess
 import sys
 from pathlib import Path
@@ -19,8 +20,9 @@ from scipy.integrate import solve_ivp
 from harness.fmi.methods import SOLVERS
 from harness.objects.derivation import derive
 from harness.objects.object_file import ObjectFileError, read_object_file
+from harness.objects.proof import numeric_route_agreement
 
-from conftest import derive_contact_objects
+from conftest import CONTACT_OBJECTS, derive_contact_objects
 
 ROOT = Path(__file__).resolve().parent.parent
 
@@ -123,9 +125,12 @@ def test_the_ball_comes_to_rest_after_finitely_many_events(derived):
     assert result["n_events"][-1] == len(times) + 1
 
 
-def test_model_exchange_shows_the_impacts_to_an_importer(derived):
-    """fmpy's CVode sees the event indicators, and event mode makes the velocity jump."""
-    result = simulate_fmu(derived["Ball"], fmi_type="ModelExchange", solver="CVode", stop_time=2.0,
+@pytest.mark.parametrize("version", ["2.0", "3.0"])
+def test_model_exchange_shows_the_impacts_to_an_importer(derived, version):
+    """fmpy's CVode sees the event indicators, and event mode makes the velocity jump (fmi2NewDiscreteStates,
+    fmi3UpdateDiscreteStates)."""
+    path = derived["Ball"] if version == "2.0" else derived["Ball"].parent / "fmi3" / derived["Ball"].name
+    result = simulate_fmu(path, fmi_type="ModelExchange", solver="CVode", stop_time=2.0,
                           output_interval=0.05, relative_tolerance=1e-10, output=["y", "n_events"])
     expected = np.array([_height(t) for t in result["time"]])
     assert np.max(np.abs(result["y"] - expected)) < 1e-6
@@ -305,8 +310,53 @@ def test_the_active_constraints_survive_serialization(derived):
         instance.freeInstance()
 
 
+@pytest.mark.parametrize("name, source", [("Ball", "BouncingBall"), ("WallPendulum", "WallPendulum"),
+                                          ("RodPendulum", "CartesianPendulum")])
+def test_the_constrained_equations_are_the_numeric_routes(derived, name, source):
+    """Accelerations, constraint forces (the rod's tension), gaps and energies at random states against
+    Lagrange's equations of the first kind by finite differences (harness.objects.numeric_route)."""
+    proof = numeric_route_agreement(derived[name], read_object_file(CONTACT_OBJECTS / f"{source}.toml"), samples=4)
+    assert proof.passed, proof.detail
+
+
 def test_partial_derivatives_of_constrained_motion_are_refused_by_name(derived):
     from fmpy import read_model_description
-    description = read_model_description(derived["Ball"])
-    assert description.coSimulation.providesDirectionalDerivative is False
-    assert description.numberOfEventIndicators == 1
+    for path in (derived["Ball"], derived["Ball"].parent / "fmi3" / derived["Ball"].name):
+        description = read_model_description(path)
+        assert description.coSimulation.providesDirectionalDerivative is False
+        assert description.modelExchange.providesDirectionalDerivative is False
+        assert description.numberOfEventIndicators == 1
+        # FMI 3.0 names each event indicator by a variable: the constraint's indicator
+        indicator = next(v for v in description.modelVariables if v.name == "floor_indicator")
+        assert indicator.causality == "local"
+
+
+def test_fmi3_co_simulation_returns_early_at_each_impact(derived):
+    """With earlyReturnAllowed, fmi3DoStep ends at the first event it handles: lastSuccessfulTime is the impact
+    time of the geometric series, the ball on the floor, rising; without it the step runs to its end."""
+    from fmpy import extract, read_model_description
+    from fmpy.fmi3 import FMU3Slave
+    path = derived["Ball"].parent / "fmi3" / derived["Ball"].name
+    description = read_model_description(path)
+    references = {v.name: v.valueReference for v in description.modelVariables}
+    unzipped = extract(path)
+    times = _bounces()[0]
+    for allowed in (True, False):
+        instance = FMU3Slave(guid=description.guid, unzipDirectory=unzipped, instanceName="ball",
+                             modelIdentifier=description.coSimulation.modelIdentifier)
+        instance.instantiate(earlyReturnAllowed=allowed)
+        instance.enterInitializationMode()
+        instance.exitInitializationMode()
+        t = 0.0
+        for expected in times[:4]:
+            _, _, early, reached = instance.doStep(currentCommunicationPoint=t, communicationStepSize=1.0)
+            if not allowed:
+                assert not early and reached == t + 1.0
+                break
+            assert early and reached == pytest.approx(expected, abs=1e-12)
+            y, vy = instance.getFloat64([references["y"], references["vy"]])
+            assert y == pytest.approx(R, abs=1e-12) and vy > 0
+            t = reached
+        instance.terminate()
+        instance.freeInstance()
+    shutil.rmtree(unzipped, ignore_errors=True)

@@ -14,8 +14,10 @@ from scipy.integrate import quad, solve_ivp
 from scipy.special import ellipk
 
 from harness.fmi.methods import FIXED_STEP, SOLVERS
+from harness.objects.object_file import read_object_file
+from harness.objects.proof import numeric_route_agreement
 
-from conftest import derive_contact_objects
+from conftest import CONTACT_OBJECTS, derive_contact_objects
 
 G = 9.81
 CRADLE_L, CRADLE_PHI0 = 0.3, 0.5           # modelDescription/contact/NewtonsCradle.toml
@@ -182,3 +184,14 @@ def test_the_hertz_cradle_spreads_the_motion_and_keeps_its_energy(fmu_paths):
     assert reference[0] < -0.01 * IMPACT_SPEED          # ball 1 rebounds
     assert 0.5 * IMPACT_SPEED < reference[4] < IMPACT_SPEED  # ball 5 leaves with most, not all
     assert reference[3] > 0.01 * IMPACT_SPEED           # ball 4 follows
+
+
+# ---------------------------------------------------------------- the generated equations, independently
+
+@pytest.mark.parametrize("name", ["NewtonsCradle", "StringPendulum", "HertzCradle"])
+def test_the_constrained_equations_are_the_numeric_routes(fmu_paths, name):
+    """Accelerations, constraint forces, gaps and energies at random states against Lagrange's equations of
+    the first kind by finite differences of the file's plain T, U and gaps (harness.objects.numeric_route)."""
+    spec = read_object_file(CONTACT_OBJECTS / f"{name}.toml")
+    proof = numeric_route_agreement(fmu_paths[name], spec, samples=4)
+    assert proof.passed, proof.detail

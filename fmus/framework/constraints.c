@@ -185,9 +185,19 @@ void constraint_indicators(const ModelConst *c, int32_t active, double t, const 
     }
 }
 
+void event_indicators(const ModelConst *c, int32_t active, double t, const double *x, const double *u, double *z)
+{
+    int i;
+    constraint_indicators(c, active, t, x, u, z);
+    /* a gap's event lies just past contact (as in Co-Simulation), so that the state an impact leaves behind is not
+     * taken for the next event, and touching without overlap (a Hertz cradle at rest) is no contact */
+    for (i = 0; i < NC; i++)
+        if (c->law[i].compliant || (!c->law[i].bilateral && !(active >> i & 1))) z[i] += GAP_ROUNDING;
+}
+
 int indicator_crossed(const ModelConst *c, int i, double before, double after)
 {
-    if (c->law[i].compliant) return (before > 0.0) != (after > 0.0);
+    if (c->law[i].compliant) return (before > -GAP_ROUNDING) != (after > -GAP_ROUNDING);
     return after < -GAP_ROUNDING;
 }
 
@@ -295,7 +305,8 @@ int32_t departing_constraints(const ModelConst *c, int32_t active, double t, con
     for (i = 0; i < NC; i++) {
         const int32_t bit = (int32_t)1 << i;
         if (c->law[i].compliant || c->law[i].bilateral || (active & bit)) continue;
-        if (fabs(geo.g[i]) <= CONTACT_GAP && geo.rate[i] >= -GAP_ROUNDING && !would_rest(c, active, i, t, x, u))
+        if (geo.g[i] <= CONTACT_GAP && geo.rate[i] >= -GAP_ROUNDING && geo.rate[i] < REST_SPEED &&
+            !would_rest(c, active, i, t, x, u))
             departing |= bit;
     }
     return departing;
@@ -317,12 +328,30 @@ int leave_boundary(const ModelConst *c, int32_t active, int32_t departing, doubl
     return impulse(c, active | approaching, t, x, -1, 0.0);
 }
 
+/* A compliant constraint's bit records whether it overlaps; each change is an onset or an end: an event. */
+static void track_overlaps(const ModelConst *c, int32_t *active, double t, const double *x, uint64_t *events)
+{
+    Geometry geo;
+    int i;
+    geometry_at(c, t, x, &geo);
+    for (i = 0; i < NC; i++) {
+        const int32_t bit = (int32_t)1 << i;
+        if (c->law[i].compliant && ((*active & bit) != 0) != (geo.g[i] <= -GAP_ROUNDING)) {
+            *active ^= bit;
+            if (events) (*events)++;
+        }
+    }
+}
+
 int handle_event(const ModelConst *c, int32_t *active, double t, double *x, const double *u, uint64_t *events)
 {
     /* onto the constraints that held up to the event first: a constraint released there leaves from g = 0, not
      * from the drift of the step that reached it (which would read as a new crossing at once) */
-    return project_constraints(c, *active, t, x) && resolve_events(c, active, t, x, u, events) &&
-           project_constraints(c, *active, t, x);
+    if (!project_constraints(c, *active, t, x) || !resolve_events(c, active, t, x, u, events) ||
+        !project_constraints(c, *active, t, x))
+        return 0;
+    track_overlaps(c, active, t, x, events);
+    return 1;
 }
 
 int start_constraints(const ModelConst *c, int32_t *active, double t, double *x, const double *u, char *message,
@@ -343,6 +372,7 @@ int start_constraints(const ModelConst *c, int32_t *active, double t, double *x,
             return 0;
         }
     }
+    track_overlaps(c, active, t, x, NULL); /* a compliant contact overlapping from the start: no event */
     /* a constraint touching at rest begins active where its force pushes: no event */
     for (i = 0; i < NC; i++) {
         const int32_t bit = (int32_t)1 << i;
@@ -357,13 +387,15 @@ int start_constraints(const ModelConst *c, int32_t *active, double t, double *x,
 int constraint_outputs(const ModelConst *c, double t, const double *u, double *real)
 {
     Geometry geo;
-    double lambda[NC];
+    double lambda[NC], z[NC];
     int i;
     geometry_at(c, t, real, &geo);
     if (!forces_at(c, *c->active, t, real, u, lambda)) return 0;
+    event_indicators(c, *c->active, t, real, u, z);
     for (i = 0; i < NC; i++) {
         real[CONSTRAINT_GAP_VRS[i]] = geo.g[i];
         real[CONSTRAINT_FORCE_VRS[i]] = lambda[i];
+        real[CONSTRAINT_INDICATOR_VRS[i]] = z[i];
         if (c->law[i].compliant && geo.g[i] < 0.0) { /* the energy the overlap stores */
             const double stored = c->law[i].stiffness * pow(-geo.g[i], c->law[i].exponent + 1.0) /
                                   (c->law[i].exponent + 1.0);

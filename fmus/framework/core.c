@@ -885,14 +885,9 @@ Status core_get_event_indicators(Instance *inst, const char *function, double z[
 #if N_CONSTRAINTS > 0
     {
         double u[INPUT_SLOTS];
-        int i;
         if (!ensure_constants(inst, function)) return STATUS_ERROR;
-        constraint_indicators(&inst->constants, inst->s.active_constraints, inst->s.time, inst->s.real,
-                              acting_inputs(inst, u), z);
-        /* a rigid gap's event lies just past contact (as in Co-Simulation), so that the state an impact leaves
-         * behind is not taken for the next event */
-        for (i = 0; i < N_CONSTRAINTS; i++)
-            if (!inst->constants.law[i].compliant && !(inst->s.active_constraints >> i & 1)) z[i] += GAP_ROUNDING;
+        event_indicators(&inst->constants, inst->s.active_constraints, inst->s.time, inst->s.real,
+                         acting_inputs(inst, u), z);
         if (first_non_finite(z, N_CONSTRAINTS) >= 0) {
             log_discard(inst, "%s: an event indicator is not finite at the current state", function);
             return STATUS_DISCARD;
@@ -909,14 +904,18 @@ Status core_new_discrete_states(Instance *inst, const char *function, int *state
     {
         double u[INPUT_SLOTS], before[N_STATES];
         const int32_t active = inst->s.active_constraints;
+        const uint64_t events = inst->s.integrator.n_events;
         if (!ensure_constants(inst, function)) return STATUS_ERROR;
         memcpy(before, inst->s.real, sizeof before);
         if (!handle_event(&inst->constants, &inst->s.active_constraints, inst->s.time, inst->s.real,
-                          acting_inputs(inst, u), &inst->s.integrator.n_events)) {
+                          acting_inputs(inst, u), &inst->s.integrator.n_events) ||
+            !model_state_ok(&inst->constants, inst->s.real)) {
             memcpy(inst->s.real, before, sizeof before);
             inst->s.active_constraints = active;
-            log_error(inst, "%s: the constraints at t = %.17g are dependent (an impact or a contact force has no "
-                      "unique solution)", function, inst->s.time);
+            inst->s.integrator.n_events = events;
+            log_error(inst, "%s: the event at t = %.17g cannot be resolved: the constraints are dependent (an impact "
+                      "or a contact force has no unique solution) or the state after it is singular; the state is "
+                      "left as it was", function, inst->s.time);
             return STATUS_ERROR;
         }
         *states_changed = memcmp(before, inst->s.real, sizeof before) != 0 || active != inst->s.active_constraints;

@@ -1,6 +1,7 @@
 /* The FMI 3.0 layer: the standard's function signatures, its state machine (the table below) and its
  * types, over the version-neutral core (core.c), which does the work. The FMU has Model Exchange and
- * Co-Simulation without event mode, scalar variables only (Float64, the UInt64 counters and the
+ * Co-Simulation without event mode (returning early at an event where the importer allows it), scalar
+ * variables only (Float64, the UInt64 counters and the
  * enumerations, which FMI 3.0 reads and writes as Int64), no clocks and no structural parameters;
  * in Co-Simulation it reports every accepted internal step to an importer that provides the
  * intermediate-update callback. */
@@ -174,7 +175,6 @@ fmi3Instance fmi3InstantiateCoSimulation(fmi3String instanceName, fmi3String ins
     size_t i;
     (void)resourcePath;
     (void)visible;
-    (void)earlyReturnAllowed; /* this FMU never returns early */
     if (eventModeUsed) {
         refuse(instanceName, instanceEnvironment, logMessage,
                "fmi3InstantiateCoSimulation: eventModeUsed = true, but this FMU has no event mode (hasEventMode is "
@@ -184,6 +184,7 @@ fmi3Instance fmi3InstantiateCoSimulation(fmi3String instanceName, fmi3String ins
     inst = instantiate(__func__, INTERFACE_CO_SIMULATION, instanceName, instantiationToken, loggingOn,
                        instanceEnvironment, logMessage);
     if (!inst) return NULL;
+    inst->return_at_events = earlyReturnAllowed ? 1 : 0;
     if (nRequiredIntermediateVariables > 0 && !requiredIntermediateVariables) {
         log_error(inst, "fmi3InstantiateCoSimulation: requiredIntermediateVariables is NULL for %lu variables",
                   (unsigned long)nRequiredIntermediateVariables);
@@ -589,7 +590,7 @@ fmi3Status fmi3DeserializeFMUState(fmi3Instance instance, const fmi3Byte seriali
     CALL(FN_DESERIALIZE, core_deserialize(inst, __func__, serializedState, size, FMUState));
 }
 
-/* ---------------------------------------------------------------- events (there are none) */
+/* ---------------------------------------------------------------- events (Model Exchange: the constraints') */
 
 fmi3Status fmi3EvaluateDiscreteStates(fmi3Instance instance)
 {
@@ -608,13 +609,17 @@ fmi3Status fmi3UpdateDiscreteStates(fmi3Instance instance, fmi3Boolean *discrete
         log_error(inst, "fmi3UpdateDiscreteStates: every result pointer must be non-NULL");
         return fmi3Error;
     }
-    *discreteStatesNeedUpdate = fmi3False;
-    *terminateSimulation = fmi3False;
-    *nominalsOfContinuousStatesChanged = fmi3False;
-    *valuesOfContinuousStatesChanged = fmi3False;
-    *nextEventTimeDefined = fmi3False;
-    *nextEventTime = 0.0;
-    return fmi3OK;
+    {
+        int changed;
+        const Status status = core_new_discrete_states(inst, __func__, &changed);
+        *discreteStatesNeedUpdate = fmi3False;
+        *terminateSimulation = fmi3False;
+        *nominalsOfContinuousStatesChanged = fmi3False;
+        *valuesOfContinuousStatesChanged = changed ? fmi3True : fmi3False;
+        *nextEventTimeDefined = fmi3False;
+        *nextEventTime = 0.0;
+        return (fmi3Status)status;
+    }
 }
 
 /* ---------------------------------------------------------------- Model Exchange */
@@ -658,15 +663,7 @@ fmi3Status fmi3GetContinuousStateDerivatives(fmi3Instance instance, fmi3Float64 
 
 fmi3Status fmi3GetEventIndicators(fmi3Instance instance, fmi3Float64 eventIndicators[], size_t nEventIndicators)
 {
-    Instance *inst = enter(instance, FN_GET_EVENT_INDICATORS, __func__);
-    (void)eventIndicators;
-    if (!inst) return fmi3Error;
-    if (nEventIndicators != 0) {
-        log_error(inst, "fmi3GetEventIndicators: nEventIndicators = %lu, but this FMU has no event indicators",
-                  (unsigned long)nEventIndicators);
-        return fmi3Error;
-    }
-    return fmi3OK;
+    CALL(FN_GET_EVENT_INDICATORS, core_get_event_indicators(inst, __func__, eventIndicators, nEventIndicators));
 }
 
 fmi3Status fmi3GetContinuousStates(fmi3Instance instance, fmi3Float64 continuousStates[], size_t nContinuousStates)
@@ -694,7 +691,7 @@ static fmi3Status number_of(fmi3Instance instance, Function fn, const char *func
 
 fmi3Status fmi3GetNumberOfEventIndicators(fmi3Instance instance, size_t *nEventIndicators)
 {
-    return number_of(instance, FN_GET_NUMBER_OF_EVENT_INDICATORS, __func__, nEventIndicators, 0);
+    return number_of(instance, FN_GET_NUMBER_OF_EVENT_INDICATORS, __func__, nEventIndicators, (size_t)N_CONSTRAINTS);
 }
 
 fmi3Status fmi3GetNumberOfContinuousStates(fmi3Instance instance, size_t *nContinuousStates)
@@ -732,9 +729,10 @@ fmi3Status fmi3DoStep(fmi3Instance instance, fmi3Float64 currentCommunicationPoi
         return fmi3Error;
     }
     status = core_do_step(inst, __func__, currentCommunicationPoint, communicationStepSize);
-    *eventHandlingNeeded = fmi3False;
+    *eventHandlingNeeded = fmi3False; /* the FMU handled its events inside the step */
     *terminateSimulation = fmi3False;
-    *earlyReturn = fmi3False;
+    /* stopped at an event it handled, where the importer allowed that */
+    *earlyReturn = status == STATUS_OK && inst->s.time < currentCommunicationPoint + communicationStepSize;
     *lastSuccessfulTime = inst->s.last_successful_time;
     return (fmi3Status)status;
 }

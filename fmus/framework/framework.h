@@ -126,6 +126,7 @@ struct Instance {
      * five-link chain), allocated at its first step, so that an instance that never uses it pays nothing. */
     double (*taylor_work)[TAYLOR_SLOTS];
     int logging_on;
+    int return_at_events; /* FMI 3.0 Co-Simulation with earlyReturnAllowed: a step ends at the first event it handles */
 };
 
 /* instance.c. Logging: errors and discards are always reported; the rest only with debug logging on. */
@@ -272,6 +273,9 @@ INTERNAL int constraint_forces(const ModelConst *c, int32_t active, double t, co
  * bilateral one; u the inputs (NULL: none). */
 INTERNAL void constraint_indicators(const ModelConst *c, int32_t active, double t, const double *x, const double *u,
                                     double *z);
+/* The event indicators Model Exchange hands out: constraint_indicators, an inactive rigid gap's just past contact. */
+INTERNAL void event_indicators(const ModelConst *c, int32_t active, double t, const double *x, const double *u,
+                               double *z);
 /* Whether indicator i's change from `before` to `after` is an event. */
 INTERNAL int indicator_crossed(const ModelConst *c, int i, double before, double after);
 /* The acting rigid constraints back to g = 0 and g' = 0 (the drift of a step). */

@@ -290,7 +290,7 @@ static double locate_event(const EventStepper *e, const IntegratorMemory *memory
             if (!(theta > lo && theta < hi)) theta = 0.5 * (lo + hi);
             trial_step(e, memory, x0, t, theta, xt);
             indicators_at(e, t + theta, xt, zt);
-            if (e->inst->constants.law[k].compliant ? (zt[k] > 0.0) != (z0[k] > 0.0) : zt[k] <= 0.0) {
+            if (e->inst->constants.law[k].compliant ? (zt[k] > -GAP_ROUNDING) != (z0[k] > -GAP_ROUNDING) : zt[k] <= 0.0) {
                 hi = theta;
                 zhi = zt[k];
                 memcpy(xhi, xt, sizeof xhi);
@@ -373,19 +373,26 @@ static Status step_with_events(Instance *inst, const char *function, RightHandSi
         for (any = 0, k = 0; k < N_CONSTRAINTS; k++) any |= crossed(&e, k, z0[k], z1[k]);
         while (any) {
             const double theta = locate_event(&e, &m0, x0, ta, tb - ta, z0, x);
+            double located[STATE_SLOTS];
+            const int32_t active_before = s->active_constraints;
             ta += theta;
             *memory = m0;
             memory->ab_count = 0;
-            if (!handle_event(c, &s->active_constraints, ta, x, inputs_at(f, ta, u), &memory->n_events) ||
+            memcpy(located, x, sizeof located);
+            if (!leave_boundary(c, s->active_constraints, e.departing, ta, x) ||
+                !handle_event(c, &s->active_constraints, ta, x, inputs_at(f, ta, u), &memory->n_events) ||
                 !model_state_ok(c, x)) {
+                memcpy(x, located, sizeof located); /* the state the event was found in, as it was */
+                s->active_constraints = active_before;
+                memory->n_events = m0.n_events;
                 count_work(memory, f);
                 finish(inst, t, ta - t, ta);
                 log_discard(inst, "%s: the constraints at t = %.17g are dependent (an impact or a contact force has no "
                             "unique solution); stopped there (last successful time %.17g)", function, ta, ta);
                 return STATUS_DISCARD;
             }
-            /* an event found again where it was handled, changing nothing: stop rather than spin */
-            stalls = theta == 0.0 && memory->n_events == events_seen && s->active_constraints == active_seen ? stalls + 1 : 0;
+            /* events found again and again where they change nothing: stop rather than spin */
+            stalls = memory->n_events == events_seen && s->active_constraints == active_seen ? stalls + 1 : 0;
             events_seen = memory->n_events;
             active_seen = s->active_constraints;
             if (stalls > 2) {
@@ -406,10 +413,13 @@ static Status step_with_events(Instance *inst, const char *function, RightHandSi
             }
             memcpy(x0, x, sizeof x0);
             m0 = *memory;
-            start_of_step(&e, ta, x, z1);
-            for (k = 0; k < N_CONSTRAINTS; k++) /* a compliant contact's onset or end is an event of its own */
-                if (c->law[k].compliant && (z0[k] > 0.0) != (z1[k] > 0.0)) memory->n_events++;
-            memcpy(z0, z1, sizeof z0);
+            start_of_step(&e, ta, x, z0);
+            if (inst->return_at_events && ta > t && ta < t_end && memory->n_events > events_before) { /* FMI 3.0 */
+                count_work(memory, f);
+                f->checks++;
+                if (!evaluate_at(inst, ta, x, checked)) return fail(inst, function, t, ta, solver_name(solver), e.h, 0);
+                return finish_with(inst, t, ta - t, checked, f->inputs_vary);
+            }
             any = 0;
             if (tb - ta > 4.0 * DBL_EPSILON * fabs(tb)) {
                 trial_step(&e, &m0, x0, ta, tb - ta, x);

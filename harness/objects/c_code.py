@@ -662,10 +662,12 @@ def _constraint_header(spec) -> str:
     names = ", ".join(f'"{c.name}"' for c in spec.constraints)
     gaps = ", ".join(f"VR_{c.outputs[0]}" for c in spec.constraints)
     forces = ", ".join(f"VR_{c.outputs[1]}" for c in spec.constraints)
+    indicators = ", ".join(f"VR_{c.indicator}" for c in spec.constraints)
     return (f"#define N_CONSTRAINTS {k}\n#include \"constraints.h\"\n"
             f"static const char *const CONSTRAINT_NAMES[N_CONSTRAINTS] = {{{names}}};\n"
             f"static const unsigned CONSTRAINT_GAP_VRS[N_CONSTRAINTS] = {{{gaps}}};\n"
-            f"static const unsigned CONSTRAINT_FORCE_VRS[N_CONSTRAINTS] = {{{forces}}};\n")
+            f"static const unsigned CONSTRAINT_FORCE_VRS[N_CONSTRAINTS] = {{{forces}}};\n"
+            f"static const unsigned CONSTRAINT_INDICATOR_VRS[N_CONSTRAINTS] = {{{indicators}}};\n")
 
 
 def _inputs_from_real(inputs: list) -> list[str]:

@@ -67,8 +67,8 @@ def dependencies(derivation: Derivation, initial: bool = False) -> dict[str, set
             del result[f"der({c.velocity})"]
         for constraint, terms in zip(spec.constraints, derivation.constraints):
             result[f"{constraint.name}_gap"] = of(terms.gap)
-            if constraint.compliant:
-                result["E_pot"] |= of(terms.gap)
+            if constraint.compliant:  # the energy k delta^(exponent + 1) / (exponent + 1) the overlap stores
+                result["E_pot"] |= of(terms.gap) | of(constraint.stiffness)
         result["E"] = result["E_kin"] | result["E_pot"]
         result[EVENT_COUNTER] = set()
     return result

@@ -12,11 +12,10 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from harness.objects.c_code import generate_c
-from harness.objects.dependencies import dependencies
 from harness.objects.derivation import GENERATION_SECONDS, Derivation, derive, time_limit
 from harness.objects.documentation import equations_html
 from harness.objects.model_description import model_description
-from harness.objects.model_description_fmi3 import from_fmi2
+from harness.objects.model_description_fmi3 import model_description_fmi3
 from harness.objects.object_file import ObjectFileError, read_object_file
 
 
@@ -58,8 +57,7 @@ def _generate(spec, out: str | Path, progress: Callable[[str], None]) -> Generat
     _write(folder / "physics.c", code.source)
     _write(folder / "modelDescription.xml", xml)
     (folder / "fmi3").mkdir(exist_ok=True)
-    _write(folder / "fmi3" / "modelDescription.xml",
-           from_fmi2(xml, dependencies(derivation), dependencies(derivation, initial=True)))
+    _write(folder / "fmi3" / "modelDescription.xml", model_description_fmi3(derivation, xml))
     progress("simplifying the equations for the documentation (at most a minute)")
     _write(folder / "equations.html", equations_html(derivation))
     return GeneratedObject(spec.identifier, folder, derivation)

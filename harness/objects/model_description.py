@@ -128,6 +128,10 @@ def variables(derivation: Derivation) -> list[Variable]:
         result.append(Variable(force, "output", "continuous", initial="calculated", unit=constraint.force_unit,
                                description=f"{what}: {law} along the gap's gradient"
                                            f"{'' if constraint.bilateral else ' (>= 0: it only pushes)'}"))
+        result.append(Variable(constraint.indicator, "local", "continuous", initial="calculated",
+                               description=f"{what}: its event indicator (the gap while open, the force while it "
+                                           f"rests or is taut, 1 for a bilateral constraint); an event where it "
+                                           f"changes sign"))
     result.append(Variable("solver", "parameter", "tunable", type="Enumeration", declared_type="Solver",
                            start=SOLVERS.index("rk4") + 1,
                            description="integration method of the Co-Simulation step; Model Exchange leaves the "

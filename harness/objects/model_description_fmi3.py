@@ -27,15 +27,18 @@ _KEPT = ("name", "valueReference", "causality", "variability", "initial", "descr
 _TYPED = ("declaredType", "unit", "start", "min", "max")
 
 
-def model_description_fmi3(derivation: Derivation) -> str:
-    return from_fmi2(model_description(derivation), dependencies(derivation), dependencies(derivation, initial=True))
+def model_description_fmi3(derivation: Derivation, fmi2_text: str | None = None) -> str:
+    """The object's FMI 3.0 description (from its FMI 2.0 one, given or made here)."""
+    return from_fmi2(fmi2_text if fmi2_text is not None else model_description(derivation), dependencies(derivation),
+                     dependencies(derivation, initial=True), [c.indicator for c in derivation.spec.constraints])
 
 
 def from_fmi2(fmi2_text: str, needs: dict[str, set[str]] | None = None,
-              initial_needs: dict[str, set[str]] | None = None) -> str:
+              initial_needs: dict[str, set[str]] | None = None, event_indicators: list[str] = ()) -> str:
     """The FMI 3.0 description of the FMU that `fmi2_text` describes. `needs` and `initial_needs` give,
     by name, the knowns ("time" for time) each output and state derivative depends on, and each initial
-    unknown; where they are None, the FMI 2.0 description's own dependency lists are translated."""
+    unknown; where they are None, the FMI 2.0 description's own dependency lists are translated.
+    `event_indicators` names the variables of the event indicators, in their order."""
     root = ET.fromstring(fmi2_text)
     cs, me = root.find("CoSimulation"), root.find("ModelExchange")
     identifier = (cs if cs is not None else me).get("modelIdentifier")
@@ -44,6 +47,8 @@ def from_fmi2(fmi2_text: str, needs: dict[str, set[str]] | None = None,
     time_reference = max(references.values()) + 1
     references["time"] = time_reference
     by_index = {k: v for k, v in enumerate(scalars, start=1)}
+    # partial derivatives where FMI 2.0 offers them (not for constrained motion)
+    partial = "true" if (cs if cs is not None else me).get("providesDirectionalDerivative") == "true" else "false"
     lines = [
         '<?xml version="1.0" encoding="UTF-8"?>',
         f'<fmiModelDescription fmiVersion="3.0" modelName={quoteattr(root.get("modelName"))}',
@@ -52,10 +57,10 @@ def from_fmi2(fmi2_text: str, needs: dict[str, set[str]] | None = None,
         f'  generationTool={quoteattr(root.get("generationTool", ""))} variableNamingConvention="structured">',
         f'  <ModelExchange modelIdentifier="{identifier}" canGetAndSetFMUState="true" '
         'canSerializeFMUState="true" needsCompletedIntegratorStep="false"',
-        '    providesDirectionalDerivatives="true" providesAdjointDerivatives="true"/>',
+        f'    providesDirectionalDerivatives="{partial}" providesAdjointDerivatives="{partial}"/>',
         f'  <CoSimulation modelIdentifier="{identifier}" canGetAndSetFMUState="true" canSerializeFMUState="true"',
         '    canHandleVariableCommunicationStepSize="true" maxOutputDerivativeOrder="1" providesIntermediateUpdate="true"',
-        '    providesDirectionalDerivatives="true" providesAdjointDerivatives="true"/>']
+        f'    providesDirectionalDerivatives="{partial}" providesAdjointDerivatives="{partial}"/>']
     lines += _copied(root.find("UnitDefinitions"))
     types = root.find("TypeDefinitions")
     if types is not None and len(types):
@@ -107,6 +112,7 @@ def from_fmi2(fmi2_text: str, needs: dict[str, set[str]] | None = None,
         return found
     lines += unknowns("Outputs", "Output", needs) + unknowns("Derivatives", "ContinuousStateDerivative", needs)
     lines += unknowns("InitialUnknowns", "InitialUnknown", initial_needs)
+    lines += [f'    <EventIndicator valueReference="{references[name]}"/>' for name in event_indicators]
     lines += ['  </ModelStructure>', '</fmiModelDescription>', '']
     return "\n".join(lines)
 

@@ -185,6 +185,11 @@ class Constraint:
     def outputs(self) -> tuple[str, str]:
         return f"{self.name}_gap", f"{self.name}_force"
 
+    @property
+    def indicator(self) -> str:
+        """Its event indicator's variable (a local: FMI 3.0 names each event indicator by a variable)."""
+        return f"{self.name}_indicator"
+
 
 @dataclass
 class ObjectSpec:
@@ -569,7 +574,7 @@ def _read_constraints(reader: _Reader, table: dict, claim, symbols: dict, parame
             exponent=exponent, damping=coefficient("damping", 0.0, 0.0, None),
             unit=reader.string(entry, "unit", f"{where}.unit", "m"),
             description=reader.string(entry, "description", f"{where}.description", "")))
-        for output in result[-1].outputs:
+        for output in (*result[-1].outputs, result[-1].indicator):
             claim(output, where)
     return result
 

@@ -86,13 +86,15 @@ def prove(fmu: str | Path, spec: ObjectSpec, samples: int = 6) -> list[Proof]:
 # ---- the equations against the numeric route
 
 def random_values(spec: ObjectSpec, rng: np.random.Generator) -> dict[str, float]:
-    """Parameters within 20 % of their defaults (and in range), coordinates within 0.3 and velocities
-    within 1 of their starts, force inputs up to 2 N, damping up to 0.3, time up to 1 s if it matters."""
+    """Parameters within 20 % of their defaults (and in range; those in a rigid constraint's gap stay, so that
+    the start still respects it), coordinates within 0.3 and velocities within 1 of their starts, force
+    inputs up to 2 N, damping up to 0.3, time up to 1 s if it matters."""
     values: dict[str, float] = {}
+    fixed = {str(s) for c in spec.constraints if not c.compliant for s in c.gap.free_symbols}
     for p in spec.parameters:
         if p.name in FRAMEWORK_PARAMETERS:
             continue
-        value = p.start * rng.uniform(0.8, 1.2)
+        value = p.start * (rng.uniform(0.8, 1.2) if p.name not in fixed else 1.0)
         values[p.name] = float(np.clip(value, -np.inf if p.min is None else p.min, np.inf if p.max is None else p.max))
     values["d"] = rng.uniform(0.0, 0.3)
     for c in spec.coordinates:
@@ -132,11 +134,22 @@ def numeric_route_agreement(fmu: Path, spec: ObjectSpec, samples: int, seed: int
                 break
             if instance.role("derivatives", derivatives, 2 * n) != OK:
                 continue  # a singular sample (outside `require`): the FMU said so; draw another
-            expected = route.accelerations(values, values["t"])
+            # the rigid constraints resting at the start (default coordinates) act at every state set after it
+            start = {**values, **{c.name: c.start for c in spec.coordinates},
+                     **{c.velocity: c.velocity_start for c in spec.coordinates}}
+            active = route.resting(start, values["t"])
+            expected = route.accelerations(values, values["t"], active)
             got = np.array(derivatives[n:])
             if list(derivatives[:n]) != states[n:]:
                 problems.append("dq/dt is not the velocity state")
             worst = max(worst, float(np.max(np.abs(got - expected)) / max(1.0, float(np.max(np.abs(expected))))))
+            if spec.constraints:  # the constraint forces, and the gaps
+                forces = route.forces(values, values["t"], active)
+                got = np.array(instance.get(*[c.outputs[1] for c in spec.constraints]))
+                worst = max(worst, float(np.max(np.abs(got - forces)) / max(1.0, float(np.max(np.abs(forces))))))
+                gaps, _ = route.gaps(values, values["t"])
+                got = np.array(instance.get(*[c.outputs[0] for c in spec.constraints]))
+                worst = max(worst, float(np.max(np.abs(got - gaps))))
             T, U = route.energies(values, values["t"])
             E_kin, E_pot = instance.get("E_kin", "E_pot")
             worst_energy = max(worst_energy, abs(E_kin - T) / max(1.0, abs(T)), abs(E_pot - U) / max(1.0, abs(U)))
@@ -144,7 +157,8 @@ def numeric_route_agreement(fmu: Path, spec: ObjectSpec, samples: int, seed: int
     if done < samples and not problems:
         problems.append(f"only {done} of {samples} random states were regular")
     passed = not problems and worst < tolerance and worst_energy < 1e-12
-    detail = (f"largest relative deviation of the accelerations {worst:.1e}, of E_kin and E_pot {worst_energy:.1e} "
+    detail = (f"largest relative deviation of the accelerations{' (constraint forces and gaps)' if spec.constraints else ''} "
+              f"{worst:.1e}, of E_kin and E_pot {worst_energy:.1e} "
               f"at {done} random parameters, states, inputs{' and times' if spec.rheonomic else ''}")
     return Proof("equations = numeric route (finite differences of plain T, U)", passed,
                  detail + ("; " + "; ".join(problems) if problems else ""))
