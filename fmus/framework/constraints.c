@@ -109,12 +109,17 @@ int constraint_forces(const ModelConst *c, int32_t active, double t, const doubl
     Geometry geo;
     double L[NQ * NQ], a[NQ], force[NC];
     int set[NC], i, j, p, m, compliant = 0;
+    m = acting(c, active, set);
+    if (m == 0 && N_COMPLIANT == 0) { /* free motion: no geometry needed */
+        if (lambda)
+            for (i = 0; i < NC; i++) lambda[i] = 0.0;
+        return 1;
+    }
     geometry_at(c, t, x, &geo);
     for (i = 0; i < NC; i++) {
         force[i] = c->law[i].compliant ? compliant_force(&c->law[i], geo.g[i], geo.rate[i]) : 0.0;
         if (force[i] != 0.0) compliant = 1;
     }
-    m = acting(c, active, set);
     if (lambda) memcpy(lambda, force, sizeof force);
     if (!compliant && m == 0) return 1;
     model_mass(c, t, x, L);
@@ -296,20 +301,13 @@ int project_constraints(const ModelConst *c, int32_t active, double t, double *x
     return project_positions(c, active, t, x) && impulse(c, active, t, x, -1, 0.0);
 }
 
-int32_t departing_constraints(const ModelConst *c, int32_t active, double t, const double *x, const double *u)
+int constraint_departs(const ModelConst *c, int32_t active, int i, double t, const double *x, const double *u)
 {
     Geometry geo;
-    int32_t departing = 0;
-    int i;
+    if (c->law[i].compliant || c->law[i].bilateral || (active >> i & 1)) return 0;
     geometry_at(c, t, x, &geo);
-    for (i = 0; i < NC; i++) {
-        const int32_t bit = (int32_t)1 << i;
-        if (c->law[i].compliant || c->law[i].bilateral || (active & bit)) continue;
-        if (geo.g[i] <= CONTACT_GAP && geo.rate[i] >= -GAP_ROUNDING && geo.rate[i] < REST_SPEED &&
-            !would_rest(c, active, i, t, x, u))
-            departing |= bit;
-    }
-    return departing;
+    return geo.g[i] <= CONTACT_GAP && geo.rate[i] >= -GAP_ROUNDING && geo.rate[i] < REST_SPEED &&
+           !would_rest(c, active, i, t, x, u);
 }
 
 int leave_boundary(const ModelConst *c, int32_t active, int32_t departing, double t, double *x)

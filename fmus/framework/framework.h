@@ -285,10 +285,11 @@ INTERNAL int project_constraints(const ModelConst *c, int32_t active, double t, 
  * jump, positions stay; counted into events); the state projected onto the constraints that hold after it. 0 where the constraints are dependent. */
 INTERNAL int handle_event(const ModelConst *c, int32_t *active, double t, double *x, const double *u,
                           uint64_t *events);
-/* The rigid unilateral constraints that touch without approaching and whose force would not push: the exact
- * motion leaves them (a string gone slack, a ball lifting off), so a step's dip across them is the method's
- * error, not an event. */
-INTERNAL int32_t departing_constraints(const ModelConst *c, int32_t active, double t, const double *x, const double *u);
+/* Whether rigid unilateral constraint i touches without approaching and its force would not push: the exact
+ * motion leaves it (a string gone slack, a ball lifting off), so a step's dip across it is the method's error,
+ * not an event. */
+INTERNAL int constraint_departs(const ModelConst *c, int32_t active, int i, double t, const double *x,
+                                const double *u);
 /* Those of `departing` that the step left below g = 0 back onto it, their approaching rates to zero. */
 INTERNAL int leave_boundary(const ModelConst *c, int32_t active, int32_t departing, double t, double *x);
 /* The start values against the rigid constraints (0 with a message naming the one violated) and the

@@ -201,7 +201,10 @@ typedef struct {
     RightHandSide *f;
     int solver, adaptive;
     double h, tol;
-    int32_t departing; /* constraints the step leaves: their crossings are the method's error (departing_constraints) */
+    /* the step's start, and the constraints it departs from (constraint_departs), decided where they cross */
+    const double *x_start;
+    double t_start;
+    int32_t departing, decided;
 } EventStepper;
 
 static const double *inputs_at(const RightHandSide *f, double t, double *u)
@@ -213,8 +216,15 @@ static const double *inputs_at(const RightHandSide *f, double t, double *u)
 
 static void indicators_at(const EventStepper *e, double t, const double *x, double *z)
 {
+    const ModelConst *c = &e->inst->constants;
     double u[INPUT_SLOTS];
-    constraint_indicators(&e->inst->constants, e->inst->s.active_constraints, t, x, inputs_at(e->f, t, u), z);
+    int i;
+    constraint_indicators(c, e->inst->s.active_constraints, t, x, inputs_at(e->f, t, u), z);
+    for (i = 0; i < N_CONSTRAINTS; i++) /* a resting or taut constraint's indicator is its force: an evaluation */
+        if (!c->law[i].compliant && !c->law[i].bilateral && (e->inst->s.active_constraints >> i & 1)) {
+            e->f->evaluations++;
+            break;
+        }
 }
 
 /* x = the method's step of theta from (t, x0), with the integrator memory `memory` left as it was. */
@@ -231,84 +241,190 @@ static void trial_step(const EventStepper *e, const IntegratorMemory *memory, co
     }
 }
 
-static int crossed(const EventStepper *e, int k, double before, double after)
+static int crossed(EventStepper *e, int k, double before, double after)
 {
-    return !(e->departing >> k & 1) && indicator_crossed(&e->inst->constants, k, before, after);
+    const int32_t bit = (int32_t)1 << k;
+    if (!indicator_crossed(&e->inst->constants, k, before, after)) return 0;
+    if (!(e->decided & bit)) { /* a touching constraint the motion leaves: its crossing is the method's error */
+        double u[INPUT_SLOTS];
+        e->decided |= bit;
+        if (before <= CONTACT_GAP && constraint_departs(&e->inst->constants, e->inst->s.active_constraints, k,
+                                                        e->t_start, e->x_start, inputs_at(e->f, e->t_start, u)))
+            e->departing |= bit;
+    }
+    return !(e->departing & bit);
 }
 
-/* The indicators at the start of a step from (t, x), and the constraints it departs from. */
-static void start_of_step(EventStepper *e, double t, const double *x, double *z)
+/* Whether a rigid constraint acts (bilateral, or resting or taut): the steps' ends are projected onto it. */
+static int rigid_acting(const ModelConst *c, int32_t active)
 {
-    double u[INPUT_SLOTS];
-    indicators_at(e, t, x, z);
-    e->departing = departing_constraints(&e->inst->constants, e->inst->s.active_constraints, t, x,
-                                         inputs_at(e->f, t, u));
+    int i;
+    for (i = 0; i < N_CONSTRAINTS; i++)
+        if (!c->law[i].compliant && (c->law[i].bilateral || (active >> i & 1))) return 1;
+    return 0;
 }
 
-/* The first event in (t, t + span] from x0 (indicators z0 there), whose step of span crossed; leaves the
- * state at the event in x and returns the event's offset from t. */
-static double locate_event(const EventStepper *e, const IntegratorMemory *memory, const double *x0, double t,
-                           double span, const double *z0, double *x)
+/* A step from (t, x0): its start for the departing constraints, and the indicators there (z, or those the last
+ * step ended with where nothing moved the state since: `reuse`). */
+static void start_of_step(EventStepper *e, double t, const double *x0, double *z, const double *reuse)
 {
-    double z[N_CONSTRAINTS], zt[N_CONSTRAINTS], xt[STATE_SLOTS], xhi[STATE_SLOTS];
-    double lo = 0.0, hi = span, zlo, zhi;
-    int k, j, round, round_k, iteration, side = 0;
-    trial_step(e, memory, x0, t, span, xhi);
-    indicators_at(e, t + span, xhi, z);
-    /* the indicator that crossed first by linear interpolation */
-    k = -1;
-    for (j = 0; j < N_CONSTRAINTS; j++)
-        if (crossed(e, j, z0[j], z[j]) &&
-            (k < 0 || z0[j] / (z0[j] - z[j]) < z0[k] / (z0[k] - z[k])))
-            k = j;
-    for (round = 0; round <= N_CONSTRAINTS && k >= 0; round++) {
-        zlo = z0[k];
-        zhi = z[k];
-        lo = 0.0;
-        /* A rigid gap that starts touching (just after an impact) and returns within the step: from a point
-         * where it is open. */
-        if (!e->inst->constants.law[k].compliant && !(zlo > 0.0)) {
-            double theta = hi;
-            int found = 0;
-            for (j = 0; j < 40 && !found; j++) {
-                theta *= 0.5;
-                trial_step(e, memory, x0, t, theta, xt);
-                indicators_at(e, t + theta, xt, zt);
-                if (zt[k] > 0.0) {
-                    lo = theta;
-                    zlo = zt[k];
-                    found = 1;
+    e->x_start = x0;
+    e->t_start = t;
+    e->departing = e->decided = 0;
+    if (reuse)
+        memcpy(z, reuse, N_CONSTRAINTS * sizeof(double));
+    else
+        indicators_at(e, t, x0, z);
+}
+
+/* The state at offset theta in [0, span] on the quintic Hermite interpolant of a step from x0 to x1 whose
+ * accelerations at its ends are a0 and a1: positions to O(span^6), velocities (the interpolant's derivative) to
+ * O(span^5). Costs no evaluation of the equations, so events are found on it first. */
+static void interpolate(const double *x0, const double *a0, const double *x1, const double *a1, double span,
+                        double theta, double *x)
+{
+    const double s = theta / span, s2 = s * s, s3 = s2 * s, s4 = s3 * s, s5 = s4 * s, h2 = span * span;
+    const double b[6] = {1.0 - 10.0 * s3 + 15.0 * s4 - 6.0 * s5, s - 6.0 * s3 + 8.0 * s4 - 3.0 * s5,
+                         0.5 * (s2 - 3.0 * s3 + 3.0 * s4 - s5), 10.0 * s3 - 15.0 * s4 + 6.0 * s5,
+                         -4.0 * s3 + 7.0 * s4 - 3.0 * s5, 0.5 * (s3 - 2.0 * s4 + s5)};
+    const double d[6] = {-30.0 * s2 + 60.0 * s3 - 30.0 * s4, 1.0 - 18.0 * s2 + 32.0 * s3 - 15.0 * s4,
+                         0.5 * (2.0 * s - 9.0 * s2 + 12.0 * s3 - 5.0 * s4), 30.0 * s2 - 60.0 * s3 + 30.0 * s4,
+                         -12.0 * s2 + 28.0 * s3 - 15.0 * s4, 0.5 * (3.0 * s2 - 8.0 * s3 + 5.0 * s4)};
+    int j;
+    for (j = 0; j < N_COORDINATES; j++) {
+        const double q0 = x0[j], v0 = x0[N_COORDINATES + j], q1 = x1[j], v1 = x1[N_COORDINATES + j];
+        x[j] = b[0] * q0 + b[1] * span * v0 + b[2] * h2 * a0[j] + b[3] * q1 + b[4] * span * v1 + b[5] * h2 * a1[j];
+        x[N_COORDINATES + j] = (d[0] * q0 + d[1] * span * v0 + d[2] * h2 * a0[j] + d[3] * q1 + d[4] * span * v1 +
+                                d[5] * h2 * a1[j]) / span;
+    }
+}
+
+/* The accelerations at (t, x), counted as an evaluation. */
+static void accelerations_at(const EventStepper *e, double t, const double *x, double *a)
+{
+    double dx[N_STATES], u[INPUT_SLOTS];
+    model_equations(&e->inst->constants, t, x, inputs_at(e->f, t, u), dx);
+    e->f->evaluations++;
+    memcpy(a, dx + N_COORDINATES, N_COORDINATES * sizeof(double));
+}
+
+/* Whether indicator k at `value` lies on the far side of its event from where the step began (z0): the side a
+ * located event must end on, so that handling it sees the contact or the release. */
+static int past(const EventStepper *e, int k, double value, double start)
+{
+    return e->inst->constants.law[k].compliant ? (value > -GAP_ROUNDING) != (start > -GAP_ROUNDING) : value <= 0.0;
+}
+
+/* Indicator k's zero in [lo, hi] on the interpolant (Illinois), from zlo (not past) to zhi (past). */
+static double zero_on_interpolant(const EventStepper *e, int k, double t, double span, const double *x0,
+                                  const double *a0, const double *x1, const double *a1, double z0k, double lo,
+                                  double zlo, double hi, double zhi)
+{
+    double xt[STATE_SLOTS], zt[N_CONSTRAINTS];
+    int iteration, side = 0;
+    for (iteration = 0; iteration < 100 && hi - lo > 4.0 * DBL_EPSILON * (fabs(t) + span); iteration++) {
+        double theta = hi - zhi * (hi - lo) / (zhi - zlo);
+        if (!(theta > lo && theta < hi)) theta = 0.5 * (lo + hi);
+        interpolate(x0, a0, x1, a1, span, theta, xt);
+        indicators_at(e, t + theta, xt, zt);
+        if (past(e, k, zt[k], z0k)) {
+            hi = theta;
+            zhi = zt[k];
+            if (side == 1) zlo *= 0.5; /* Illinois: the retained end's value halved */
+            side = 1;
+        } else {
+            lo = theta;
+            zlo = zt[k];
+            if (side == -1) zhi *= 0.5;
+            side = -1;
+        }
+    }
+    return hi;
+}
+
+/* The first event in (t, t + span] of the step from x0 (indicators z0) to x1, whose indicators crossed: found on
+ * the step's interpolant, then on the method's own step map (so that every method keeps its order through
+ * impacts) by a Newton step or two from there. Leaves the state at the event in x (past it by at most the
+ * indicator's rounding) and returns the event's offset from t. Typically costs two evaluations and one or two
+ * trial steps. */
+static double locate_event(EventStepper *e, const IntegratorMemory *memory, const double *x0, double t,
+                           double span, const double *z0, const double *x1, double *x)
+{
+    double a0[N_COORDINATES], a1[N_COORDINATES], z1[N_CONSTRAINTS], zt[N_CONSTRAINTS], xt[STATE_SLOTS];
+    double first = span, lo, hi, zlo, zhi, theta;
+    int k = -1, j, trial;
+    accelerations_at(e, t, x0, a0);
+    accelerations_at(e, t + span, x1, a1);
+    indicators_at(e, t + span, x1, z1);
+    for (j = 0; j < N_CONSTRAINTS; j++) {
+        double start = 0.0, zstart = z0[j], found;
+        if (!crossed(e, j, z0[j], z1[j])) continue;
+        if (!e->inst->constants.law[j].compliant && !(zstart > 0.0)) {
+            /* a rigid gap that starts touching (just after an impact) and returns within the step: from a point
+             * where it is open */
+            double probe = span;
+            int open = 0, halving;
+            for (halving = 0; halving < 60 && !open; halving++) {
+                probe *= 0.5;
+                interpolate(x0, a0, x1, a1, span, probe, xt);
+                indicators_at(e, t + probe, xt, zt);
+                if (zt[j] > 0.0) {
+                    start = probe;
+                    zstart = zt[j];
+                    open = 1;
                 }
             }
-            if (!found) { /* touching all along: the event is at the start */
+            if (!open) { /* touching all along: the event is at the start */
                 memcpy(x, x0, STATE_SLOTS * sizeof(double));
                 return 0.0;
             }
         }
-        for (iteration = 0; iteration < 200 && hi - lo > 4.0 * DBL_EPSILON * (fabs(t) + span); iteration++) {
-            double theta = hi - zhi * (hi - lo) / (zhi - zlo);
-            if (!(theta > lo && theta < hi)) theta = 0.5 * (lo + hi);
-            trial_step(e, memory, x0, t, theta, xt);
-            indicators_at(e, t + theta, xt, zt);
-            if (e->inst->constants.law[k].compliant ? (zt[k] > -GAP_ROUNDING) != (z0[k] > -GAP_ROUNDING) : zt[k] <= 0.0) {
-                hi = theta;
-                zhi = zt[k];
-                memcpy(xhi, xt, sizeof xhi);
-                if (side == 1) zlo *= 0.5; /* Illinois: the retained end's value halved */
-                side = 1;
-            } else {
-                lo = theta;
-                zlo = zt[k];
-                if (side == -1) zhi *= 0.5;
-                side = -1;
-            }
+        found = zero_on_interpolant(e, j, t, span, x0, a0, x1, a1, z0[j], start, zstart, span, z1[j]);
+        if (k < 0 || found < first) {
+            k = j;
+            first = found;
         }
-        /* another indicator that crossed before this one's zero: locate that one within [t, t + hi] */
-        indicators_at(e, t + hi, xhi, z);
-        for (j = 0, round_k = k, k = -1; j < N_CONSTRAINTS && k < 0; j++)
-            if (j != round_k && crossed(e, j, z0[j], z[j])) k = j;
     }
-    memcpy(x, xhi, STATE_SLOTS * sizeof(double));
+    if (k < 0) { /* no crossing after all (rounding): the step's end */
+        memcpy(x, x1, STATE_SLOTS * sizeof(double));
+        return span;
+    }
+    /* onto the step map: Newton steps with the interpolant's slope, kept inside a bracket [lo, hi] whose hi end is
+     * past the event */
+    lo = 0.0;
+    hi = span;
+    zlo = z0[k];
+    zhi = z1[k];
+    memcpy(x, x1, STATE_SLOTS * sizeof(double));
+    theta = first;
+    for (trial = 0; trial < 60 && hi - lo > 4.0 * DBL_EPSILON * (fabs(t) + span); trial++) {
+        const double tolerance = 1e-14 * fmax(1.0, fabs(z0[k]));
+        double slope, zp[N_CONSTRAINTS], zm[N_CONSTRAINTS], xp[STATE_SLOTS], xm[STATE_SLOTS], next;
+        const double delta = 1e-6 * span;
+        trial_step(e, memory, x0, t, theta, xt);
+        indicators_at(e, t + theta, xt, zt);
+        if (past(e, k, zt[k], z0[k])) {
+            hi = theta;
+            zhi = zt[k];
+            memcpy(x, xt, STATE_SLOTS * sizeof(double));
+            if (fabs(zt[k]) <= tolerance) break;
+        } else {
+            lo = theta;
+            zlo = zt[k];
+        }
+        /* the slope of the indicator along the interpolant at theta */
+        interpolate(x0, a0, x1, a1, span, fmin(theta + delta, span), xp);
+        interpolate(x0, a0, x1, a1, span, fmax(theta - delta, 0.0), xm);
+        indicators_at(e, t + fmin(theta + delta, span), xp, zp);
+        indicators_at(e, t + fmax(theta - delta, 0.0), xm, zm);
+        slope = (zp[k] - zm[k]) / (fmin(theta + delta, span) - fmax(theta - delta, 0.0));
+        next = theta - zt[k] / slope;
+        if (!past(e, k, zt[k], z0[k])) /* to land past the event: a little beyond the zero */
+            next += fmax(fabs(zt[k] / slope), 4.0 * DBL_EPSILON * (fabs(t) + span));
+        if (!(next > lo && next < hi) || !isfinite(next)) next = hi - zhi * (hi - lo) / (zhi - zlo);
+        if (!(next > lo && next < hi)) next = 0.5 * (lo + hi);
+        theta = next;
+    }
     return hi;
 }
 
@@ -323,6 +439,7 @@ static Status step_with_events(Instance *inst, const char *function, RightHandSi
     const double t_end = t + H;
     const uint64_t events_before = memory->n_events;
     int64_t n, i;
+    int reuse;
     double hs;
     e.inst = inst;
     e.f = f;
@@ -344,7 +461,7 @@ static Status step_with_events(Instance *inst, const char *function, RightHandSi
         if (memory->ab_count > 0 && fabs(hs - memory->ab_step) > 1e-10 * hs) memory->ab_count = 0;
         memory->ab_step = hs;
     }
-    for (i = 0; i < n; i++) {
+    for (i = 0, reuse = 0; i < n; i++) {
         double ta = t + (double)i * hs;
         const double tb = i + 1 == n ? t_end : t + (double)(i + 1) * hs;
         double x0[STATE_SLOTS];
@@ -353,7 +470,7 @@ static Status step_with_events(Instance *inst, const char *function, RightHandSi
         int32_t active_seen = s->active_constraints;
         int any, k, stalls = 0;
         memcpy(x0, x, sizeof x0);
-        start_of_step(&e, ta, x, z0);
+        start_of_step(&e, ta, x0, z0, reuse ? z1 : NULL);
         if (e.adaptive) {
             if (adaptive_pass(f, solver, memory, x, ta, tb, e.h, e.tol, 0) < tb) {
                 memcpy(x, x0, sizeof x0);
@@ -372,9 +489,10 @@ static Status step_with_events(Instance *inst, const char *function, RightHandSi
         indicators_at(&e, tb, x, z1);
         for (any = 0, k = 0; k < N_CONSTRAINTS; k++) any |= crossed(&e, k, z0[k], z1[k]);
         while (any) {
-            const double theta = locate_event(&e, &m0, x0, ta, tb - ta, z0, x);
-            double located[STATE_SLOTS];
+            double located[STATE_SLOTS], theta;
             const int32_t active_before = s->active_constraints;
+            memcpy(located, x, sizeof located); /* the step's end, past the event */
+            theta = locate_event(&e, &m0, x0, ta, tb - ta, z0, located, x);
             ta += theta;
             *memory = m0;
             memory->ab_count = 0;
@@ -413,7 +531,7 @@ static Status step_with_events(Instance *inst, const char *function, RightHandSi
             }
             memcpy(x0, x, sizeof x0);
             m0 = *memory;
-            start_of_step(&e, ta, x, z0);
+            start_of_step(&e, ta, x0, z0, NULL);
             if (inst->return_at_events && ta > t && ta < t_end && memory->n_events > events_before) { /* FMI 3.0 */
                 count_work(memory, f);
                 f->checks++;
@@ -434,6 +552,8 @@ static Status step_with_events(Instance *inst, const char *function, RightHandSi
             count_work(memory, f);
             return fail(inst, function, t, ta, solver_name(solver), e.h, 0);
         }
+        /* the next step starts with the indicators this one ended with, unless a projection moved the state */
+        reuse = !e.departing && !rigid_acting(c, s->active_constraints);
         if (inst->report_step && inst->s.machine_state == MS_STEP_COMPLETE) state_acceptable(inst, tb, x);
     }
     count_work(memory, f);

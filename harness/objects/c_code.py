@@ -663,7 +663,8 @@ def _constraint_header(spec) -> str:
     gaps = ", ".join(f"VR_{c.outputs[0]}" for c in spec.constraints)
     forces = ", ".join(f"VR_{c.outputs[1]}" for c in spec.constraints)
     indicators = ", ".join(f"VR_{c.indicator}" for c in spec.constraints)
-    return (f"#define N_CONSTRAINTS {k}\n#include \"constraints.h\"\n"
+    return (f"#define N_CONSTRAINTS {k}\n#define N_COMPLIANT {sum(c.compliant for c in spec.constraints)}\n"
+            f"#include \"constraints.h\"\n"
             f"static const char *const CONSTRAINT_NAMES[N_CONSTRAINTS] = {{{names}}};\n"
             f"static const unsigned CONSTRAINT_GAP_VRS[N_CONSTRAINTS] = {{{gaps}}};\n"
             f"static const unsigned CONSTRAINT_FORCE_VRS[N_CONSTRAINTS] = {{{forces}}};\n"

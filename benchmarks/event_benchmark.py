@@ -1,0 +1,181 @@
+#!/usr/bin/env python3
+"""What an event costs, and the rigid Newton's cradle against scipy's solve_ivp with event functions.
+
+1. The cost of an event in steps of its method: the pendulum striking a wall (modelDescription/contact/
+   WallPendulum.toml, restitution 1) run for 10 s with the wall at 0.3 rad and again with it out of reach
+   (3.2 rad), one fmi2DoStep each; the extra right-hand-side evaluations (indicator forces included)
+   per impact, divided by the method's evaluations per step. Machine-independent counts.
+2. One full period of the cradle (modelDescription/contact/NewtonsCradle.toml: ball 1 let go from
+   0.5 rad, one ball out, back, one ball out the other side, back): its state after the period against
+   the exact one (ball 1 at -0.5 rad at rest, the others at rest), for the FMU's nystrom5, rk4 and rkf45
+   and for scipy's solve_ivp (DOP853) on the same physics written here in Python: five pendulum
+   equations, the four gaps as terminal event functions, and at each impact the exchange of the touching
+   balls' velocities passed along the row. Each at the cheapest setting found that reaches the target
+   error, then timed side by side (median of repeats, interleaved), as ratios to the FMU's fastest.
+
+Usage: python benchmarks/event_benchmark.py [--target 1e-9] [--repeats 5]
+"""
+from __future__ import annotations
+
+import argparse
+import math
+import statistics
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+
+ROOT = Path(__file__).resolve().parent.parent
+sys.path.insert(0, str(ROOT))
+
+from scipy.integrate import solve_ivp  # noqa: E402
+from scipy.special import ellipk  # noqa: E402
+
+from harness.fmi.fmu_instance import FmuInstance  # noqa: E402
+from harness.fmi.methods import FIXED_STEP, METHOD, SOLVERS  # noqa: E402
+from harness.objects.build import derive_fmu  # noqa: E402
+
+OBJECTS = ROOT / "modelDescription" / "contact"
+G, L, R, PHI0 = 9.81, 0.3, 0.02, 0.5  # the cradle's defaults
+PERIOD = 4 * ellipk(math.sin(PHI0 / 2) ** 2) * math.sqrt(L / G)
+
+
+# ---------------------------------------------------------------- 1. the cost of an event
+
+def event_cost(fmu: Path, methods: list[str], h: float = 1e-3) -> list[tuple[str, float, float, float]]:
+    """(method, impacts, evaluations per step, extra evaluations per impact) on the wall pendulum."""
+    def run(method: str, wall: float) -> tuple[float, float, float]:
+        with FmuInstance(fmu) as instance:
+            instance.initialize(solver=SOLVERS.index(method) + 1, h=h, phi_wall=wall, e=1.0)
+            instance.do_step(0.0, 10.0)
+            return tuple(instance.get("n_rhs", "n_steps", "n_events"))
+    rows = []
+    for method in methods:
+        with_wall, without = run(method, 0.3), run(method, 3.2)
+        per_step = without[0] / without[1]
+        # against the same number of steps without the wall (the implicit methods' iterations vary with the state)
+        rows.append((method, with_wall[2], per_step, (with_wall[0] - with_wall[1] * per_step) / with_wall[2]))
+    return rows
+
+
+# ---------------------------------------------------------------- 2. the cradle against solve_ivp
+
+def gaps(phi: np.ndarray) -> np.ndarray:
+    """The surface distances of neighbouring balls, pivots 2 R apart."""
+    x = 2 * R * (np.arange(5) - 2) + L * np.sin(phi)
+    y = -L * np.cos(phi)
+    return np.hypot(np.diff(x), np.diff(y)) - 2 * R
+
+
+def scipy_cradle(rtol: float) -> np.ndarray:
+    """One period of the cradle by solve_ivp: free swings between impacts, located by the gap events; an
+    impact of equal balls with restitution 1 exchanges their velocities, passed on along touching balls."""
+    def rhs(t, y):
+        return np.concatenate([y[5:], -G / L * np.sin(y[:5])])
+
+    def event(i):
+        def gap(t, y):  # just past contact: touching balls at rest (gap 0 to rounding) are no event
+            return gaps(y[:5])[i] + 1e-12
+        gap.terminal, gap.direction = True, -1
+        return gap
+    events = [event(i) for i in range(4)]
+    t, y = 0.0, np.array([-PHI0, 0, 0, 0, 0, 0, 0, 0, 0, 0], dtype=float)
+    while t < PERIOD:
+        solution = solve_ivp(rhs, (t, PERIOD), y, method="DOP853", rtol=rtol, atol=rtol, events=events)
+        t, y = solution.t[-1], solution.y[:, -1].copy()
+        if solution.status != 1:
+            break
+        # the impact: exchanges along the row until no touching pair approaches
+        for _ in range(16):
+            touching = gaps(y[:5]) < 1e-9
+            approaching = [i for i in range(4) if touching[i] and y[5 + i] > y[6 + i]]
+            if not approaching:
+                break
+            i = approaching[0]
+            y[5 + i], y[6 + i] = y[6 + i], y[5 + i]
+    return y
+
+
+def fmu_cradle(fmu: FmuInstance, settings: dict) -> np.ndarray:
+    fmu.reset()
+    fmu.initialize(**settings)
+    fmu.do_step(0.0, PERIOD)
+    return np.array(fmu.get(*[f"phi{i}" for i in range(1, 6)], *[f"omega{i}" for i in range(1, 6)]))
+
+
+def error(state: np.ndarray) -> float:
+    exact = np.array([-PHI0, 0, 0, 0, 0, 0, 0, 0, 0, 0])
+    return float(np.max(np.abs(state - exact)))
+
+
+def cheapest_fmu(fmu: FmuInstance, method: str, target: float) -> dict | None:
+    """The largest step (or tol) of the method that reaches the target after one period."""
+    candidates = ([{"solver": SOLVERS.index(method) + 1, "h": 0.05, "tol": tol} for tol in (1e-6, 1e-8, 1e-10, 1e-12)]
+                  if method == "rkf45" else
+                  [{"solver": SOLVERS.index(method) + 1, "h": PERIOD / n} for n in (50, 100, 200, 400, 800, 1600, 3200)])
+    for settings in candidates:
+        if error(fmu_cradle(fmu, settings)) <= target:
+            return settings
+    return None
+
+
+def cheapest_scipy(target: float) -> float | None:
+    for rtol in (1e-6, 1e-7, 1e-8, 1e-9, 1e-10, 1e-11, 1e-12, 1e-13):
+        if error(scipy_cradle(rtol)) <= target:
+            return rtol
+    return None
+
+
+def timed(run, repeats: int) -> float:
+    times = []
+    for _ in range(repeats):
+        start = time.perf_counter()
+        run()
+        times.append(time.perf_counter() - start)
+    return statistics.median(times)
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--target", type=float, default=1e-9, help="error of the cradle's state after one period")
+    parser.add_argument("--repeats", type=int, default=5)
+    args = parser.parse_args(argv)
+    with tempfile.TemporaryDirectory() as folder:
+        wall = derive_fmu(OBJECTS / "WallPendulum.toml", folder).path
+        cradle = derive_fmu(OBJECTS / "NewtonsCradle.toml", folder).path
+        print("1. The cost of an impact (wall pendulum, h = 1e-3 s, 10 s): extra evaluations per impact, in steps")
+        print(f"{'method':18s} {'impacts':>7s} {'evals/step':>10s} {'extra evals':>11s} {'in steps':>8s}")
+        methods = [m for m in FIXED_STEP if m not in ("stormer_verlet", "taylor", "gbs")]
+        for method, impacts, per_step, extra in event_cost(wall, methods):
+            print(f"{method:18s} {impacts:7.0f} {per_step:10.2f} {extra:11.1f} {extra / per_step:8.1f}"
+                  f"{'  (Adams: history restarted)' if METHOD[method].family.startswith('adams') else ''}")
+        print(f"\n2. One period of the rigid cradle ({PERIOD:.4f} s), state error <= {args.target:g}")
+        with FmuInstance(cradle) as fmu:
+            chosen = {method: cheapest_fmu(fmu, method, args.target) for method in ("nystrom5", "rk4", "rkf45")}
+            rtol = cheapest_scipy(args.target)
+            runs = {f"FMU {m} {('tol ' + format(s['tol'], 'g')) if m == 'rkf45' else 'h = ' + format(s['h'], '.3g')}":
+                    (lambda s=s: fmu_cradle(fmu, s)) for m, s in chosen.items() if s is not None}
+            if rtol is not None:
+                runs[f"scipy DOP853 rtol {rtol:g}"] = lambda: scipy_cradle(rtol)
+            errors = {name: error(run()) for name, run in runs.items()}
+            times = {name: [] for name in runs}
+            for _ in range(args.repeats):  # interleaved: a noisy machine slows all alike
+                for name, run in runs.items():
+                    times[name].append(timed(run, 1))
+        best = min(statistics.median(t) for name, t in times.items() if name.startswith("FMU"))
+        print(f"{'run':32s} {'error':>9s} {'seconds':>10s} {'x fastest FMU':>14s}")
+        for name in runs:
+            median = statistics.median(times[name])
+            print(f"{name:32s} {errors[name]:9.1e} {median:10.2e} {median / best:14.1f}")
+        for method, settings in chosen.items():
+            if settings is None:
+                print(f"FMU {method}: no setting tried reaches {args.target:g}")
+        if rtol is None:
+            print(f"scipy: no rtol tried reaches {args.target:g}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
