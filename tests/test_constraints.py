@@ -176,6 +176,14 @@ def test_each_method_keeps_its_order_through_impacts(derived, solver, order):
     assert abs(measured - order) < 0.3, (errors, measured)
 
 
+def test_a_step_split_by_an_impact_counts_as_two(derived):
+    """n_steps counts the step onto each impact and the rest of that step after it."""
+    result = simulate_fmu(derived["WallPendulum"], stop_time=3.0, output_interval=0.5,
+                          start_values=_settings("rk4", 0.01), output=["n_steps", "n_events"])
+    assert result["n_events"][-1] >= 2
+    assert result["n_steps"][-1] == 300 + result["n_events"][-1]
+
+
 # ---------------------------------------------------------------- a rod as a bilateral constraint
 
 def test_a_rod_in_cartesian_coordinates_swings_like_the_angle_form(derived):

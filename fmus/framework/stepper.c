@@ -468,7 +468,7 @@ static Status step_with_events(Instance *inst, const char *function, RightHandSi
         IntegratorMemory m0 = *memory;
         uint64_t events_seen = memory->n_events;
         int32_t active_seen = s->active_constraints;
-        int any, k, stalls = 0;
+        int any, k, stalls = 0, remainder = 0;
         memcpy(x0, x, sizeof x0);
         start_of_step(&e, ta, x0, z0, reuse ? z1 : NULL);
         if (e.adaptive) {
@@ -496,6 +496,7 @@ static Status step_with_events(Instance *inst, const char *function, RightHandSi
             ta += theta;
             *memory = m0;
             memory->ab_count = 0;
+            if (!e.adaptive && theta > 0.0) memory->n_steps++; /* the step onto the event */
             memcpy(located, x, sizeof located);
             if (!leave_boundary(c, s->active_constraints, e.departing, ta, x) ||
                 !handle_event(c, &s->active_constraints, ta, x, inputs_at(f, ta, u), &memory->n_events) ||
@@ -539,7 +540,9 @@ static Status step_with_events(Instance *inst, const char *function, RightHandSi
                 return finish_with(inst, t, ta - t, checked, f->inputs_vary);
             }
             any = 0;
+            remainder = 0;
             if (tb - ta > 4.0 * DBL_EPSILON * fabs(tb)) {
+                remainder = !e.adaptive;
                 trial_step(&e, &m0, x0, ta, tb - ta, x);
                 indicators_at(&e, tb, x, z1);
                 for (k = 0; k < N_CONSTRAINTS; k++) any |= crossed(&e, k, z0[k], z1[k]);
@@ -547,6 +550,7 @@ static Status step_with_events(Instance *inst, const char *function, RightHandSi
                 memcpy(z1, z0, sizeof z1);
             }
         }
+        memory->n_steps += (uint64_t)remainder; /* the rest of a step that had an event */
         if (!leave_boundary(c, s->active_constraints, e.departing, tb, x) ||
             !project_constraints(c, s->active_constraints, tb, x)) {
             count_work(memory, f);
