@@ -166,38 +166,51 @@ static int forces_at(const ModelConst *c, int32_t active, double t, const double
 static int would_rest(const ModelConst *c, int32_t active, int i, double t, const double *x, const double *u)
 {
     Geometry geo;
-    double dx[N_STATES], lambda[NC];
-    model_free_equations(c, t, x, u, dx);
+    double dx[N_STATES], free[N_STATES], lambda[NC];
+    model_free_equations(c, t, x, u, free);
+    memcpy(dx, free, sizeof dx);
     if (!constraint_forces(c, active, t, x, dx, NULL)) return 0;
     geometry_at(c, t, x, &geo);
     return geo.gamma[i] + dot(geo.G[i], dx + NQ) < -REST_ACCELERATION &&
-           forces_at(c, active | (int32_t)1 << i, t, x, u, lambda) && lambda[i] > 0.0;
+           constraint_forces(c, active | (int32_t)1 << i, t, x, free, lambda) && lambda[i] > 0.0;
 }
 
-void constraint_indicators(const ModelConst *c, int32_t active, double t, const double *x, const double *u, double *z)
+/* The indicators from the gaps g and the forces lambda (NULL: none computed, 0 for the resting ones). */
+static void indicators_from(const ModelConst *c, int32_t active, const double *g, const double *lambda, double *z)
+{
+    int i;
+    for (i = 0; i < NC; i++) {
+        if (c->law[i].bilateral) z[i] = 1.0;
+        else if (!c->law[i].compliant && (active >> i & 1)) z[i] = lambda ? lambda[i] : 0.0;
+        else z[i] = g[i];
+    }
+}
+
+/* A gap's event lies just past contact (as in Co-Simulation), so that the state an impact leaves behind is not
+ * taken for the next event, and touching without overlap (a Hertz cradle at rest) is no contact. */
+static void past_contact(const ModelConst *c, int32_t active, double *z)
+{
+    int i;
+    for (i = 0; i < NC; i++)
+        if (c->law[i].compliant || (!c->law[i].bilateral && !(active >> i & 1))) z[i] += GAP_ROUNDING;
+}
+
+int constraint_indicators(const ModelConst *c, int32_t active, double t, const double *x, const double *u, double *z)
 {
     Geometry geo;
     double lambda[NC];
-    int i, any_active = 0;
+    int i, resting = 0;
     geometry_at(c, t, x, &geo);
     for (i = 0; i < NC; i++)
-        if (!c->law[i].compliant && !c->law[i].bilateral && (active >> i & 1)) any_active = 1;
-    if (any_active && !forces_at(c, active, t, x, u, lambda)) any_active = 0;
-    for (i = 0; i < NC; i++) {
-        if (c->law[i].bilateral) z[i] = 1.0;
-        else if (!c->law[i].compliant && (active >> i & 1)) z[i] = any_active ? lambda[i] : 0.0;
-        else z[i] = geo.g[i];
-    }
+        if (!c->law[i].compliant && !c->law[i].bilateral && (active >> i & 1)) resting = 1;
+    indicators_from(c, active, geo.g, resting && forces_at(c, active, t, x, u, lambda) ? lambda : NULL, z);
+    return resting;
 }
 
 void event_indicators(const ModelConst *c, int32_t active, double t, const double *x, const double *u, double *z)
 {
-    int i;
     constraint_indicators(c, active, t, x, u, z);
-    /* a gap's event lies just past contact (as in Co-Simulation), so that the state an impact leaves behind is not
-     * taken for the next event, and touching without overlap (a Hertz cradle at rest) is no contact */
-    for (i = 0; i < NC; i++)
-        if (c->law[i].compliant || (!c->law[i].bilateral && !(active >> i & 1))) z[i] += GAP_ROUNDING;
+    past_contact(c, active, z);
 }
 
 int indicator_crossed(const ModelConst *c, int i, double before, double after)
@@ -315,6 +328,7 @@ int leave_boundary(const ModelConst *c, int32_t active, int32_t departing, doubl
     Geometry geo;
     int32_t outside = 0, approaching = 0;
     int i;
+    if (!departing) return 1; /* every step's end comes here: no geometry where nothing departs */
     geometry_at(c, t, x, &geo);
     for (i = 0; i < NC; i++)
         if ((departing >> i & 1) && geo.g[i] < 0.0) outside |= (int32_t)1 << i;
@@ -389,7 +403,8 @@ int constraint_outputs(const ModelConst *c, double t, const double *u, double *r
     int i;
     geometry_at(c, t, real, &geo);
     if (!forces_at(c, *c->active, t, real, u, lambda)) return 0;
-    event_indicators(c, *c->active, t, real, u, z);
+    indicators_from(c, *c->active, geo.g, lambda, z);
+    past_contact(c, *c->active, z);
     for (i = 0; i < NC; i++) {
         real[CONSTRAINT_GAP_VRS[i]] = geo.g[i];
         real[CONSTRAINT_FORCE_VRS[i]] = lambda[i];

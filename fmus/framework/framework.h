@@ -270,9 +270,9 @@ INTERNAL void model_mass(const ModelConst *c, double t, const double *x, double 
 INTERNAL int constraint_forces(const ModelConst *c, int32_t active, double t, const double *x, double *dx,
                                double *lambda);
 /* Event indicators: the gap of an inactive or compliant constraint, the force of an active one, 1 for a
- * bilateral one; u the inputs (NULL: none). */
-INTERNAL void constraint_indicators(const ModelConst *c, int32_t active, double t, const double *x, const double *u,
-                                    double *z);
+ * bilateral one; u the inputs (NULL: none). Returns whether it solved for the forces (an evaluation). */
+INTERNAL int constraint_indicators(const ModelConst *c, int32_t active, double t, const double *x, const double *u,
+                                   double *z);
 /* The event indicators Model Exchange hands out: constraint_indicators, an inactive rigid gap's just past contact. */
 INTERNAL void event_indicators(const ModelConst *c, int32_t active, double t, const double *x, const double *u,
                                double *z);

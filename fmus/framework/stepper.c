@@ -216,15 +216,10 @@ static const double *inputs_at(const RightHandSide *f, double t, double *u)
 
 static void indicators_at(const EventStepper *e, double t, const double *x, double *z)
 {
-    const ModelConst *c = &e->inst->constants;
     double u[INPUT_SLOTS];
-    int i;
-    constraint_indicators(c, e->inst->s.active_constraints, t, x, inputs_at(e->f, t, u), z);
-    for (i = 0; i < N_CONSTRAINTS; i++) /* a resting or taut constraint's indicator is its force: an evaluation */
-        if (!c->law[i].compliant && !c->law[i].bilateral && (e->inst->s.active_constraints >> i & 1)) {
-            e->f->evaluations++;
-            break;
-        }
+    /* a resting or taut constraint's indicator is its force: an evaluation */
+    e->f->evaluations += (uint64_t)constraint_indicators(&e->inst->constants, e->inst->s.active_constraints, t, x,
+                                                         inputs_at(e->f, t, u), z);
 }
 
 /* x = the method's step of theta from (t, x0), with the integrator memory `memory` left as it was. */
