@@ -1,11 +1,11 @@
 #!/usr/bin/env python3
 """What an event costs, and the rigid Newton's cradle against scipy's solve_ivp with event functions.
 
-1. The cost of an event in steps of its method: the pendulum striking a wall (modelDescription/contact/
+1. The cost of an event in steps of its method: the pendulum striking a wall (modelDescription/
    WallPendulum.toml, restitution 1) run for 10 s with the wall at 0.3 rad and again with it out of reach
    (3.2 rad), one fmi2DoStep each; the extra right-hand-side evaluations (indicator forces included)
    per impact, divided by the method's evaluations per step. Machine-independent counts.
-2. One full period of the cradle (modelDescription/contact/NewtonsCradle.toml: ball 1 let go from
+2. One full period of the cradle (modelDescription/NewtonsCradle.toml: ball 1 let go from
    0.5 rad, one ball out, back, one ball out the other side, back): its state after the period against
    the exact one (ball 1 at -0.5 rad at rest, the others at rest), for the FMU's nystrom5, rk4 and rkf45
    and for scipy's solve_ivp (DOP853) on the same physics written here in Python: five pendulum
@@ -21,7 +21,6 @@ import argparse
 import math
 import statistics
 import sys
-import tempfile
 import time
 from pathlib import Path
 
@@ -35,9 +34,8 @@ from scipy.special import ellipk  # noqa: E402
 
 from harness.fmi.fmu_instance import FmuInstance  # noqa: E402
 from harness.fmi.methods import FIXED_STEP, METHOD, SOLVERS  # noqa: E402
-from harness.objects.build import derive_fmu  # noqa: E402
+from harness.fmi.fmus import build_fmus, locate_fmu  # noqa: E402
 
-OBJECTS = ROOT / "modelDescription" / "contact"
 G, L, R, PHI0 = 9.81, 0.3, 0.02, 0.5  # the cradle's defaults
 PERIOD = 4 * ellipk(math.sin(PHI0 / 2) ** 2) * math.sqrt(L / G)
 
@@ -141,39 +139,38 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--target", type=float, default=1e-9, help="error of the cradle's state after one period")
     parser.add_argument("--repeats", type=int, default=5)
     args = parser.parse_args(argv)
-    with tempfile.TemporaryDirectory() as folder:
-        wall = derive_fmu(OBJECTS / "WallPendulum.toml", folder).path
-        cradle = derive_fmu(OBJECTS / "NewtonsCradle.toml", folder).path
-        print("1. The cost of an impact (wall pendulum, h = 1e-3 s, 10 s): extra evaluations per impact, in steps")
-        print(f"{'method':18s} {'impacts':>7s} {'evals/step':>10s} {'extra evals':>11s} {'in steps':>8s}")
-        methods = [m for m in FIXED_STEP if m not in ("stormer_verlet", "taylor", "gbs")]
-        for method, impacts, per_step, extra in event_cost(wall, methods):
-            note = ("  (history restarted)" if METHOD[method].family.startswith("adams") else
-                    "  (Newton's iterations vary with the state)" if METHOD[method].implicit else "")
-            print(f"{method:18s} {impacts:7.0f} {per_step:10.2f} {extra:11.1f} {extra / per_step:8.1f}{note}")
-        print(f"\n2. One period of the rigid cradle ({PERIOD:.4f} s), state error <= {args.target:g}")
-        with FmuInstance(cradle) as fmu:
-            chosen = {method: cheapest_fmu(fmu, method, args.target) for method in ("nystrom5", "rk4", "rkf45")}
-            rtol = cheapest_scipy(args.target)
-            runs = {f"FMU {m} {('tol ' + format(s['tol'], 'g')) if m == 'rkf45' else 'h = ' + format(s['h'], '.3g')}":
-                    (lambda s=s: fmu_cradle(fmu, s)) for m, s in chosen.items() if s is not None}
-            if rtol is not None:
-                runs[f"scipy DOP853 rtol {rtol:g}"] = lambda: scipy_cradle(rtol)
-            errors = {name: error(run()) for name, run in runs.items()}
-            times = {name: [] for name in runs}
-            for _ in range(args.repeats):  # interleaved: a noisy machine slows all alike
-                for name, run in runs.items():
-                    times[name].append(timed(run, 1))
-        best = min(statistics.median(t) for name, t in times.items() if name.startswith("FMU"))
-        print(f"{'run':32s} {'error':>9s} {'seconds':>10s} {'x fastest FMU':>14s}")
-        for name in runs:
-            median = statistics.median(times[name])
-            print(f"{name:32s} {errors[name]:9.1e} {median:10.2e} {median / best:14.1f}")
-        for method, settings in chosen.items():
-            if settings is None:
-                print(f"FMU {method}: no setting tried reaches {args.target:g}")
-        if rtol is None:
-            print(f"scipy: no rtol tried reaches {args.target:g}")
+    build_fmus()
+    wall, cradle = locate_fmu("WallPendulum"), locate_fmu("NewtonsCradle")
+    print("1. The cost of an impact (wall pendulum, h = 1e-3 s, 10 s): extra evaluations per impact, in steps")
+    print(f"{'method':18s} {'impacts':>7s} {'evals/step':>10s} {'extra evals':>11s} {'in steps':>8s}")
+    methods = [m for m in FIXED_STEP if m not in ("stormer_verlet", "taylor", "gbs")]
+    for method, impacts, per_step, extra in event_cost(wall, methods):
+        note = ("  (history restarted)" if METHOD[method].family.startswith("adams") else
+                "  (Newton's iterations vary with the state)" if METHOD[method].implicit else "")
+        print(f"{method:18s} {impacts:7.0f} {per_step:10.2f} {extra:11.1f} {extra / per_step:8.1f}{note}")
+    print(f"\n2. One period of the rigid cradle ({PERIOD:.4f} s), state error <= {args.target:g}")
+    with FmuInstance(cradle) as fmu:
+        chosen = {method: cheapest_fmu(fmu, method, args.target) for method in ("nystrom5", "rk4", "rkf45")}
+        rtol = cheapest_scipy(args.target)
+        runs = {f"FMU {m} {('tol ' + format(s['tol'], 'g')) if m == 'rkf45' else 'h = ' + format(s['h'], '.3g')}":
+                (lambda s=s: fmu_cradle(fmu, s)) for m, s in chosen.items() if s is not None}
+        if rtol is not None:
+            runs[f"scipy DOP853 rtol {rtol:g}"] = lambda: scipy_cradle(rtol)
+        errors = {name: error(run()) for name, run in runs.items()}
+        times = {name: [] for name in runs}
+        for _ in range(args.repeats):  # interleaved: a noisy machine slows all alike
+            for name, run in runs.items():
+                times[name].append(timed(run, 1))
+    best = min(statistics.median(t) for name, t in times.items() if name.startswith("FMU"))
+    print(f"{'run':32s} {'error':>9s} {'seconds':>10s} {'x fastest FMU':>14s}")
+    for name in runs:
+        median = statistics.median(times[name])
+        print(f"{name:32s} {errors[name]:9.1e} {median:10.2e} {median / best:14.1f}")
+    for method, settings in chosen.items():
+        if settings is None:
+            print(f"FMU {method}: no setting tried reaches {args.target:g}")
+    if rtol is None:
+        print(f"scipy: no rtol tried reaches {args.target:g}")
     return 0
 
 

@@ -83,10 +83,16 @@ static void start_values(double *real, int32_t *integer)
 static void prepare_generated(const double *real, const int32_t *integer, ModelConst *c)
 {
     char message[256];
+#if N_CONSTRAINTS > 0
+    static const int32_t none_active = 0; /* the loops here locate no events: the free motion */
+#endif
     if (model_prepare(real, integer, c, message, sizeof message)) {
         fprintf(stderr, "%s\n", message);
         exit(2);
     }
+#if N_CONSTRAINTS > 0
+    c->active = &none_active;
+#endif
 }
 
 /* Returns the seconds spent in fmi2DoStep; the final first state goes to *result. */

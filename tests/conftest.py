@@ -51,21 +51,6 @@ def fmu_paths() -> dict[str, Path]:
     return {name: build_dir() / "fmus" / f"{name}.fmu" for name in FMU_NAMES}
 
 
-# The objects that touch: derived here (`harness derive`, as a user builds an object) until the suites that run
-# every registry object cover constrained motion
-CONTACT_OBJECTS = PROJECT_ROOT / "modelDescription" / "contact"
-
-
-def derive_contact_objects(folder: Path, *names: str) -> dict[str, Path]:
-    paths = {}
-    for name in names:
-        result = subprocess.run([sys.executable, "-m", "harness", "derive", str(CONTACT_OBJECTS / f"{name}.toml"),
-                                 "--out", str(folder)], capture_output=True, text=True, cwd=PROJECT_ROOT)
-        assert result.returncode == 0, result.stderr
-        paths[name] = folder / f"{name}.fmu"
-    return paths
-
-
 @pytest.fixture(scope="session")
 def unzipped(fmu_paths, tmp_path_factory) -> dict[str, str]:
     """Each FMU extracted once per session."""

@@ -22,7 +22,7 @@ from harness.objects.derivation import derive
 from harness.objects.object_file import ObjectFileError, read_object_file
 from harness.objects.proof import numeric_route_agreement
 
-from conftest import CONTACT_OBJECTS, derive_contact_objects
+from harness.objects.registry import object_file
 
 ROOT = Path(__file__).resolve().parent.parent
 
@@ -47,11 +47,10 @@ floor = { gap = "y - R", restitution = "e" }
 """
 
 @pytest.fixture(scope="module")
-def derived(tmp_path_factory):
-    """The objects modelDescription/contact/ holds, under the names these tests use."""
-    paths = derive_contact_objects(tmp_path_factory.mktemp("constrained"), "BouncingBall", "WallPendulum",
-                                   "CartesianPendulum")
-    return {"Ball": paths["BouncingBall"], "WallPendulum": paths["WallPendulum"], "RodPendulum": paths["CartesianPendulum"]}
+def derived(fmu_paths):
+    """The registry's objects that touch, under the names these tests use."""
+    return {"Ball": fmu_paths["BouncingBall"], "WallPendulum": fmu_paths["WallPendulum"],
+            "RodPendulum": fmu_paths["CartesianPendulum"]}
 
 
 def _settings(solver: str, h: float, **others) -> dict:
@@ -61,7 +60,7 @@ def _settings(solver: str, h: float, **others) -> dict:
 # ---------------------------------------------------------------- the bouncing ball, exactly
 
 G, E, R, Y0 = 9.81, 0.8, 0.1, 1.0
-BALL_MASS = 1.0  # modelDescription/contact/BouncingBall.toml
+BALL_MASS = 1.0  # modelDescription/BouncingBall.toml
 
 
 def _bounces(e: float = E, rest_speed: float = 1e-3):
@@ -323,7 +322,7 @@ def test_the_active_constraints_survive_serialization(derived):
 def test_the_constrained_equations_are_the_numeric_routes(derived, name, source):
     """Accelerations, constraint forces (the rod's tension), gaps and energies at random states against
     Lagrange's equations of the first kind by finite differences (harness.objects.numeric_route)."""
-    proof = numeric_route_agreement(derived[name], read_object_file(CONTACT_OBJECTS / f"{source}.toml"), samples=4)
+    proof = numeric_route_agreement(derived[name], read_object_file(object_file(source)), samples=4)
     assert proof.passed, proof.detail
 
 

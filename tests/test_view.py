@@ -102,7 +102,8 @@ def assert_agrees(checked: dict, expected: dict[str, float], bound: float) -> fl
 
 
 @pytest.mark.parametrize("scene, stop, bound", [("thesis_scene", 2.0, 1e-10), ("double_and_cart", 3.0, 1e-10),
-                                                ("spring_chain", 2.0, 1e-10)])
+                                                ("spring_chain", 2.0, 1e-10), ("string_pendulum", 2.0, 1e-10),
+                                                ("newtons_cradle", 2.0, 1e-9)])
 def test_the_headless_check_ends_where_the_native_master_does(scene, stop, bound):
     needs_browser()
     checked = drive("check", f"{page(scene).as_uri()}?check={stop}")
@@ -210,6 +211,40 @@ def test_a_spherical_pendulum_is_drawn_and_dragged_as_its_scene_traces_it():
     spin = load_system(SCENES / "spherical_pendulum.json").component("bob").start.get("psi_dot", 3.0)
     assert bob["psi_dot"] == spin and bob["theta_dot"] == 0
     assert seen["problem"] == "" and seen["later"]["time"] == pytest.approx(0.5)
+
+
+def test_the_cradle_is_playable_two_balls_in_two_out():
+    """Newton's cradle on the page: ball 2 dragged out beside ball 1 (a drop into ball 1 is refused by
+    the FMU, so the drag stops where they touch), let go: the impacts in the WebAssembly FMU are the
+    native FMU's, and two balls swing out on the other side."""
+    needs_browser()
+    SCREENSHOTS.mkdir(parents=True, exist_ok=True)
+    L, R, phi0 = 0.3, 0.02, -0.5  # scenes/newtons_cradle.json, modelDescription/NewtonsCradle.toml
+    beside = [-2 * R + L * math.sin(phi0), -L * math.cos(phi0)]
+    into = [-2 * R + L * math.sin(phi0 - 0.2), -L * math.cos(phi0 - 0.2)]  # through ball 1
+    steps = 90  # 0.45 s: past the impact at a quarter period (0.28 s)
+    ball1 = [-4 * R + L * math.sin(phi0), -L * math.cos(phi0)]
+    plan = [{"drag": ["cradle", "ball1_x", "ball1_y", ball1]}, {"drag": ["cradle", "ball2_x", "ball2_y", into]},
+            {"snapshot": "pushed"}, {"drag": ["cradle", "ball2_x", "ball2_y", beside]}, {"snapshot": "dropped"},
+            {"start": ["start", "cradle"]}, {"step": steps}, {"snapshot": "later"},
+            {"screenshot": str(SCREENSHOTS / "view_newtons_cradle.png")}]
+    seen = session("newtons_cradle", plan)
+    pixel = seen["metres_per_pixel"]
+    # the page ran a moment before the session paused it: ball 1 may have left -0.5 rad
+    pushed = seen["pushed"]["components"]["cradle"]
+    assert -1e-12 <= pushed["contact12_gap"] < 1e-3  # stopped at ball 1 (to the FMU's tolerance), not through it
+    dropped = seen["dropped"]["components"]["cradle"]
+    assert math.dist([dropped["ball2_x"], dropped["ball2_y"]], beside) <= pixel
+    component = load_system(SCENES / "newtons_cradle.json").component("cradle")
+    got = seen["later"]["components"]["cradle"]
+    expected = run_native(component.fmu, seen["start"], steps, load_system(SCENES / "newtons_cradle.json").step,
+                          list(got))
+    for variable, value in got.items():
+        assert value == pytest.approx(expected[variable], rel=1e-9, abs=1e-9), variable
+    assert got["n_events"] >= 2
+    assert got["phi4"] > 0.3 and got["phi5"] > 0.3  # two out
+    assert max(abs(got[f"phi{i}"]) for i in (1, 2, 3)) < 0.05  # two at rest behind them (and ball 3)
+    assert (SCREENSHOTS / "view_newtons_cradle.png").stat().st_size > 10_000
 
 
 def session(scene: str, plan: list[dict]) -> dict:
@@ -404,9 +439,11 @@ def test_an_interrupted_view_ends_its_compilers_and_leaves_nothing(tmp_path):
     scratch = tmp_path / "tmp"
     scratch.mkdir()
     environment = dict(os.environ, TMPDIR=str(scratch))
+    # SIGINT as a terminal delivers it: a test worker may run with it ignored, which its children inherit
     process = subprocess.Popen([sys.executable, "-m", "harness", "view", str(SCENES / "thesis_scene.json"), "--out",
                                 str(tmp_path / "out")], env=environment, cwd=PROJECT_ROOT,
-                               stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+                               stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                               preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
     deadline = time.time() + 60
     while time.time() < deadline and not any(scratch.glob("wasm-*/module.wasm.tmp*")) \
             and not _compilers_in(scratch):

@@ -27,10 +27,12 @@ NODE = shutil.which("node")
 STOP, STEP = 10.0, 0.01
 # Relative difference (|a - b| / (1 + |a|)) allowed over 10 s: rounding grown by the motion. The
 # chaotic objects' differences grow without bound under the least exact methods; for them only the
-# first second is bounded (CHAOTIC).
+# first second is bounded (CHAOTIC). So for the Hertz cradle: its contact forces of kilonewtons rise and
+# fall within a tenth of a millisecond, so an onset shifted by rounding changes a force by its whole size,
+# and the balls' later motion with it.
 OVER_RUN = 1e-9
 FIRST_SECOND = 1e-11
-CHAOTIC = {"DoublePendulum", "Chain5"}
+CHAOTIC = {"DoublePendulum", "Chain5", "HertzCradle"}
 
 
 def module(name: str):
@@ -105,7 +107,10 @@ def test_every_method_ends_as_on_linux_and_agrees_to_rounding(fmu_paths, tmp_pat
         assert np.max(difference[:round(1 / STEP) + 1]) <= FIRST_SECOND, (start, np.max(difference[:101]))
         if name not in CHAOTIC:
             assert np.max(difference) <= OVER_RUN, (start, np.max(difference))
-    assert sum(outcome == "ok" for outcome, _ in expected) >= len(runs) - 2  # only refusals and a discard
+    # only refusals (stormer_verlet where the mass matrix varies; it and taylor on constrained motion) and a
+    # discard (euler at 0.008 s cannot leave the slack string's circle: its step ends outside it)
+    assert sum(outcome not in ("ok", "refused") for outcome, _ in expected) <= 1
+    assert sum(outcome == "refused" for outcome, _ in expected) <= 2
 
 
 def test_the_difference_is_the_mathematical_library(tmp_path):

@@ -47,12 +47,15 @@ export class Poser {
     let q = Array.from(q0), r = residual(q), lambda = 1e-3;
     if (r === null) throw new Error(`${this.name}: its present pose cannot be started`);
     for (let iteration = 0; iteration < MAX_ITERATIONS && norm(r) > 1e-12; iteration++) {
-      const jacobian = q.map((qi, i) => { // columns d r / d q_i by forward differences
-        const e = 1e-7 * (1 + Math.abs(qi));
-        const shifted = q.slice();
-        shifted[i] += e;
-        const rs = residual(shifted) ?? r;
-        return [(rs[0] - r[0]) / e, (rs[1] - r[1]) / e];
+      const jacobian = q.map((qi, i) => { // columns d r / d q_i by one-sided differences
+        // forward, or backward where the FMU refuses the forward start (a ball touching the next one)
+        for (const e of [1e-7 * (1 + Math.abs(qi)), -1e-7 * (1 + Math.abs(qi))]) {
+          const shifted = q.slice();
+          shifted[i] += e;
+          const rs = residual(shifted);
+          if (rs !== null) return [(rs[0] - r[0]) / e, (rs[1] - r[1]) / e];
+        }
+        return [0, 0];
       });
       let improved = false;
       while (lambda < 1e12) {

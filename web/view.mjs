@@ -101,12 +101,15 @@ class LiveView {
     if (meta.anchor?.[a] && meta.anchor?.[b]) {
       points.push({ at: [unit.setting(meta.anchor[a]), unit.setting(meta.anchor[b])], mass: false });
     }
-    for (const point of meta.points) {
+    const shapes = this.spec[unit.name].shapes ?? [];
+    meta.points.forEach((point, k) => {
       const [h, v] = [point.axes[a], point.axes[b]];
-      if (!h || !v) continue;
+      if (!h || !v) return;
+      const { link, radius } = shapes[k] ?? {};
       points.push({ at: [unit.output(h), unit.output(v)], mass: point.moves && point.mass,
-                    grab: point.moves ? [h, v] : null });
-    }
+                    grab: point.moves ? [h, v] : null, radius,
+                    link: link ? [link["xyz".indexOf(a)], link["xyz".indexOf(b)]] : null });
+    });
     for (const [xIn, yIn] of meta.spring_ends) {
       const [sx, ox] = this.sources[unit.name]?.[xIn] ?? [], [sy, oy] = this.sources[unit.name]?.[yIn] ?? [];
       if (sx && sy) points.push({ at: [this.master.unit(sx).output(ox), this.master.unit(sy).output(oy)], spring: true });
@@ -126,7 +129,7 @@ class LiveView {
       for (const panel of panels) {
         for (const name of panel.names) {
           const unit = this.master.unit(name);
-          for (const [x, y] of [...this.figure(unit).map((p) => p.at), ...this.tracePoints(unit)]) {
+          for (const [x, y] of [...this.figure(unit).flatMap((p) => (p.link ? [p.at, p.link] : [p.at])), ...this.tracePoints(unit)]) {
             if (!Number.isFinite(x) || !Number.isFinite(y)) continue;
             const b = panel.box;
             [b[0], b[1], b[2], b[3]] = [Math.min(b[0], x), Math.min(b[1], y), Math.max(b[2], x), Math.max(b[3], y)];
@@ -389,7 +392,14 @@ class LiveView {
       c.strokeStyle = "#444";
       c.lineWidth = 2;
       if (figure.some((p) => p.spring)) drawSpring(c, figure.map((p) => p.px));
-      else {
+      else if (figure.some((p) => p.link)) { // each ball on its own string (a cradle), not a chain
+        c.beginPath();
+        for (const p of figure.filter((p) => p.link)) {
+          c.moveTo(...this.toCanvas(unit.name, p.link));
+          c.lineTo(...p.px);
+        }
+        c.stroke();
+      } else {
         c.beginPath();
         figure.forEach((p, k) => (k ? c.lineTo(...p.px) : c.moveTo(...p.px)));
         c.stroke();
@@ -397,7 +407,8 @@ class LiveView {
       for (const p of figure) {
         if (p.spring) continue;
         c.beginPath();
-        c.arc(p.px[0], p.px[1], p.mass ? 7 : 3.5, 0, 2 * Math.PI);
+        // a ball at its size where the object file gives its radius (touching balls touch on screen)
+        c.arc(p.px[0], p.px[1], p.radius ? Math.max(p.radius * this.scale, 2) : p.mass ? 7 : 3.5, 0, 2 * Math.PI);
         c.fillStyle = p.mass ? colour : "#444";
         c.fill();
       }

@@ -525,7 +525,8 @@ class SharedFmus:
 
 def accepted_methods(fmu: str) -> tuple[str, ...]:
     """The integration methods an FMU accepts, in the Solver enumeration's order: every method but
-    stormer_verlet where the object's mass matrix is not constant. Asked of the FMU itself (setting
-    `solver` is refused for a method it lacks), so that the answer is the binary's."""
+    stormer_verlet where the object's mass matrix is not constant, and neither it nor taylor where
+    the object has constraints. Asked of the FMU itself (setting `solver` is refused for a method it
+    lacks), so that the answer is the binary's."""
     with FmuInstance(fmu, name="probe") as instance:
-        return tuple(m.name for m in METHODS if not m.needs_constant_mass or instance.set(solver=m.name) == OK)
+        return tuple(m.name for m in METHODS if instance.set(solver=m.name) == OK)

@@ -28,3 +28,13 @@ class TimeTable:
         with written(Path(path)) as sink:
             sink.write(csv_header(self.columns))
             np.savetxt(sink, self.values, delimiter=",", fmt="%.17g")
+
+
+def rows_on_grid(times: np.ndarray, grid: np.ndarray) -> np.ndarray:
+    """Indices of the last row at each grid time: a Model Exchange run under fmpy records a row before and
+    after each event besides the output grid."""
+    rows = [np.flatnonzero(np.abs(times - t) <= 1e-9 * max(1.0, abs(t))) for t in grid]
+    missing = [t for t, found in zip(grid, rows) if not len(found)]
+    if missing:
+        raise ValueError(f"no row at t = {missing[0]:g}")
+    return np.array([found[-1] for found in rows])

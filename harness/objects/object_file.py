@@ -95,6 +95,9 @@ FORMAT = {
         "names": "output names other than `<point>_x`, `<point>_v_x`, ...: `{ x = \"x2\", v_x = \"v_x\" }`",
         "description": "text for the point's outputs",
         "velocity": "false: no velocity outputs (default true)",
+        "link": "for drawing: the fixed end of the point's string or rod, `{ x = \"-2*R\", y = \"0\" }` in "
+                "parameters (without links the view joins the anchor and the points in file order)",
+        "radius": "for drawing: the point is a ball of this radius (an expression in parameters)",
     },
     "constraints": {
         "gap": "the gap g in parameters, coordinates and t (required): the motion keeps g >= 0 (unilateral) or "
@@ -151,6 +154,8 @@ class Point:
     outputs: dict[str, str]           # "x", "y", "z", "v_x", ... -> output variable name
     description: str = ""
     velocity: bool = True
+    link: list[sp.Expr] | None = None  # drawing only: the string's or rod's fixed end
+    radius: sp.Expr | None = None      # drawing only: a ball's radius
 
 
 @dataclass
@@ -456,8 +461,18 @@ def read_object_file(path: str | Path, text: str | None = None) -> ObjectSpec:
             if not isinstance(output, str):
                 raise reader.fail(f"{where}.names.{kind}", "must be a string")
             outputs[kind] = claim(output, f"{where}.names.{kind}")
+        link = None
+        if "link" in entry:
+            ends = entry["link"]
+            if not isinstance(ends, dict):
+                raise reader.fail(f"{where}.link", "must be a table such as { x = \"0\", y = \"0\" }")
+            reader.known_keys(ends, set(axes), f"{where}.link")
+            if set(ends) != set(axes):
+                raise reader.fail(f"{where}.link", f"needs {' and '.join(axes)}, as the point has")
+            link = [reader.expression(ends[a], f"{where}.link.{a}", symbols, params) for a in axes]
+        radius = reader.expression(entry["radius"], f"{where}.radius", symbols, params) if "radius" in entry else None
         points.append(Point(name, position, outputs, reader.string(entry, "description", f"{where}.description", ""),
-                            with_velocity))
+                            with_velocity, link, radius))
 
     energy = reader.table(data, "energy")
     reader.known_keys(energy, set(FORMAT["energy"]), "energy")

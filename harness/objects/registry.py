@@ -23,3 +23,21 @@ def handwritten_names(folder: Path = OBJECTS_FOLDER) -> tuple[str, ...]:
 
 def object_file(name: str, folder: Path = OBJECTS_FOLDER) -> Path:
     return folder / f"{name}.toml"
+
+
+def constrained_names(folder: Path = OBJECTS_FOLDER) -> tuple[str, ...]:
+    """The objects with a [constraints] table: they have events, and no partial derivatives, Taylor
+    method or Stormer-Verlet yet."""
+    return tuple(path.stem for path in object_files(folder) if _constraints(path))
+
+
+def compliant_names(folder: Path = OBJECTS_FOLDER) -> tuple[str, ...]:
+    """The objects with a compliant constraint (one with a stiffness)."""
+    return tuple(path.stem for path in object_files(folder)
+                 if any(isinstance(c, dict) and "stiffness" in c for c in _constraints(path).values()))
+
+
+def _constraints(path: Path) -> dict:
+    import tomllib
+    constraints = tomllib.loads(path.read_text()).get("constraints", {})
+    return constraints if isinstance(constraints, dict) else {}

@@ -18,6 +18,8 @@ import re
 from dataclasses import dataclass
 from pathlib import Path
 
+import sympy as sp
+
 from harness.cosim.master import MasterOptions, run_system
 from harness.cosim.system import System, component_files, load_system
 from harness.errors import HarnessError, where
@@ -150,6 +152,21 @@ def _module(fmu: Path, wasm: bytes) -> dict:
     return module
 
 
+def _shapes(fmu: Path, start: dict) -> list[dict]:
+    """Per point of the object: where its string or rod is fixed and how big a ball it is (the object
+    file's drawing keys), in numbers for the component's parameters."""
+    spec = object_file_in(fmu)
+    if spec is None:
+        return []
+    values = {sp.Symbol(p.name, real=True): float(start.get(p.name, p.start)) for p in spec.parameters}
+
+    def number(expr):
+        return float(expr.subs(values)) if expr is not None else None
+
+    return [{"link": [number(e) for e in p.link] if p.link else None, "radius": number(p.radius)}
+            for p in spec.points]
+
+
 def _number(variable) -> float | int:
     value = variable.start
     if variable.type == "Real":
@@ -171,7 +188,8 @@ def _payload(system: System, modules: dict[str, dict], keys: dict[Path, str], fr
                 raise HarnessError(f"start values of type {instance.variables[unknown[0]].type} ({', '.join(unknown)}) "
                                    "cannot be set in the live view")
         components.append({"name": component.name, "module": keys[component.fmu], "start": start,
-                           "traces": [list(pair) for pair in system.traces.get(component.name, [])]})
+                           "traces": [list(pair) for pair in system.traces.get(component.name, [])],
+                           "shapes": _shapes(component.fmu, component.start)})
     camera = system.camera
     return {
         "name": system.name, "description": system.description,

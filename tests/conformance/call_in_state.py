@@ -44,6 +44,7 @@ def calls(fmu: FmuInstance) -> dict:
     real_out = next(v.valueReference for v in md.modelVariables if v.causality == "output" and v.type == "Real")
     real_in = next(v.valueReference for v in md.modelVariables if v.causality == "input")
     nx = md.numberOfContinuousStates
+    nz = md.numberOfEventIndicators
     vr_out, vr_in = (ctypes.c_uint * 1)(real_out), (ctypes.c_uint * 1)(real_in)
     values, order, states = (D * 1)(0.0), (I * 1)(1), (D * max(nx, 1))()
     fmu.call("fmi2GetContinuousStates", states, nx)  # fills the buffer where allowed, harmless elsewhere
@@ -85,7 +86,7 @@ def calls(fmu: FmuInstance) -> dict:
         "fmi2SetTime": lambda: fmu.call("fmi2SetTime", D(0.0)),
         "fmi2SetContinuousStates": lambda: fmu.call("fmi2SetContinuousStates", states, nx),
         "fmi2GetDerivatives": lambda: fmu.call("fmi2GetDerivatives", (D * max(nx, 1))(), nx),
-        "fmi2GetEventIndicators": lambda: fmu.call("fmi2GetEventIndicators", None, 0),
+        "fmi2GetEventIndicators": lambda: fmu.call("fmi2GetEventIndicators", (D * max(nz, 1))(), nz),
         "fmi2GetContinuousStates": lambda: fmu.call("fmi2GetContinuousStates", (D * max(nx, 1))(), nx),
         "fmi2GetNominalsOfContinuousStates": lambda: fmu.call("fmi2GetNominalsOfContinuousStates",
                                                               (D * max(nx, 1))(), nx),
