@@ -3,6 +3,7 @@ energies), every modelDescription/<id>.xml a hand-written model (the massless Sp
 build globs the same folder, so a file dropped there is built and known everywhere."""
 from __future__ import annotations
 
+import tomllib
 from pathlib import Path
 
 PROJECT_ROOT = Path(__file__).resolve().parents[2]
@@ -38,6 +39,5 @@ def compliant_names(folder: Path = OBJECTS_FOLDER) -> tuple[str, ...]:
 
 
 def _constraints(path: Path) -> dict:
-    import tomllib
     constraints = tomllib.loads(path.read_text()).get("constraints", {})
     return constraints if isinstance(constraints, dict) else {}

@@ -26,6 +26,7 @@ from harness.errors import HarnessError, where
 from harness.fmi.fmu_instance import FmuInstance, read_description
 from harness.fmi.methods import ORDER_SETTING
 from harness.fmi.simulation import MAX_POINTS
+from harness.objects.object_file import ObjectSpec
 from harness.objects.proof import object_file_in
 from harness.output import output_file, output_folder, written
 from harness.view.wasm import WEB, build_modules
@@ -69,7 +70,8 @@ def write_view(scene: str | Path, out: str | Path, step: float | None = None) ->
         fmus = list(dict.fromkeys(c.fmu for c in system.components))
         modules = build_modules(fmus)
         keys = _module_keys(fmus)
-        payload = _payload(system, {keys[f]: _module(f, modules[f]) for f in fmus}, keys, frame_rate)
+        specs = {f: object_file_in(f) for f in fmus}  # each object file read once, for its module and its shapes
+        payload = _payload(system, {keys[f]: _module(f, modules[f], specs[f]) for f in fmus}, keys, specs, frame_rate)
     text = _page(payload)
     output_folder(out, "--out")  # made only now: a refused scene leaves no folder
     with written(index) as sink:
@@ -111,13 +113,12 @@ def _kind(variable) -> str:
     return {"Real": "real", "Integer": "integer", "Enumeration": "integer", "Boolean": "boolean"}.get(variable.type, "")
 
 
-def _module(fmu: Path, wasm: bytes) -> dict:
+def _module(fmu: Path, wasm: bytes, spec: ObjectSpec | None) -> dict:
     """What the page knows of one FMU."""
     md = read_description(fmu)
     variables = md.modelVariables
     by_name = {v.name: v for v in variables}
     outputs = [v for v in variables if v.causality == "output"]
-    spec = object_file_in(fmu)
     solver = by_name.get("solver")
     module = {
         "identifier": md.coSimulation.modelIdentifier,
@@ -152,10 +153,9 @@ def _module(fmu: Path, wasm: bytes) -> dict:
     return module
 
 
-def _shapes(fmu: Path, start: dict) -> list[dict]:
+def _shapes(spec: ObjectSpec | None, start: dict) -> list[dict]:
     """Per point of the object: where its string or rod is fixed and how big a ball it is (the object
     file's drawing keys), in numbers for the component's parameters."""
-    spec = object_file_in(fmu)
     if spec is None:
         return []
     values = {sp.Symbol(p.name, real=True): float(start.get(p.name, p.start)) for p in spec.parameters}
@@ -176,7 +176,8 @@ def _number(variable) -> float | int:
     return int(value)
 
 
-def _payload(system: System, modules: dict[str, dict], keys: dict[Path, str], frame_rate: float) -> dict:
+def _payload(system: System, modules: dict[str, dict], keys: dict[Path, str], specs: dict[Path, ObjectSpec | None],
+             frame_rate: float) -> dict:
     components = []
     for component in system.components:
         # the start values, encoded as the FMU takes them
@@ -189,7 +190,7 @@ def _payload(system: System, modules: dict[str, dict], keys: dict[Path, str], fr
                                    "cannot be set in the live view")
         components.append({"name": component.name, "module": keys[component.fmu], "start": start,
                            "traces": [list(pair) for pair in system.traces.get(component.name, [])],
-                           "shapes": _shapes(component.fmu, component.start)})
+                           "shapes": _shapes(specs[component.fmu], component.start)})
     camera = system.camera
     return {
         "name": system.name, "description": system.description,

@@ -5,7 +5,8 @@
 //   node drive.mjs shot URL FILE.png S    lets the scene run S seconds, then a screenshot
 // Actions: {"set": [component, setting, value]} (a method select or a step field),
 //   {"drag": [component, xOutput, yOutput, [x, y]]} (the mouse takes that point to x, y metres),
-//   {"step": n} (the Step button n times), {"snapshot": label}, {"start": [label, component]},
+//   {"click": selector} (a button), {"step": n} (the Step button n times), {"snapshot": label},
+//   {"start": [label, component]},
 //   {"problem": label} (the page's problem line), {"screenshot": file}
 // CHROMIUM (default /usr/bin/chromium) names the browser.
 import { readFileSync } from "node:fs";
@@ -54,6 +55,8 @@ try {
         // the metres per pixel the drop was made at, before the view frames the new start
         seen.metres_per_pixel = 1 / await page.evaluate(() => window.pendulumView.scale());
         await page.mouse.up();
+      } else if (action.click) {
+        await page.click(action.click);
       } else if (action.step) {
         for (let k = 0; k < action.step; k++) await page.click("#step");
       } else if (action.snapshot) {
