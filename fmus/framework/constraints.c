@@ -197,13 +197,10 @@ static void past_contact(const ModelConst *c, int32_t active, double *z)
 
 int constraint_indicators(const ModelConst *c, int32_t active, double t, const double *x, const double *u, double *z)
 {
-    Geometry geo;
-    double lambda[NC];
-    int i, resting = 0;
-    geometry_at(c, t, x, &geo);
-    for (i = 0; i < NC; i++)
-        if (!c->law[i].compliant && !c->law[i].bilateral && (active >> i & 1)) resting = 1;
-    indicators_from(c, active, geo.g, resting && forces_at(c, active, t, x, u, lambda) ? lambda : NULL, z);
+    double g[NC], lambda[NC];
+    const int resting = (active & RIGID_UNILATERAL_BITS) != 0;
+    model_gaps(c, t, x, g);
+    indicators_from(c, active, g, resting && forces_at(c, active, t, x, u, lambda) ? lambda : NULL, z);
     return resting;
 }
 
@@ -226,10 +223,10 @@ static int impulse(const ModelConst *c, int32_t active, double t, double *x, int
     Geometry geo;
     double L[NQ * NQ], r[NC], dv[NQ];
     int set[NC], m, p, j;
-    geometry_at(c, t, x, &geo);
     m = acting(c, active, set);
     if (hit >= 0) set[m++] = hit;
     if (m == 0) return 1;
+    geometry_at(c, t, x, &geo);
     for (p = 0; p < m; p++) r[p] = (set[p] == hit ? target : 0.0) - geo.rate[set[p]];
     model_mass(c, t, x, L);
     if (!cholesky(L, NQ) || !constrained_response(L, &geo, set, m, r, dv)) return 0;

@@ -841,6 +841,7 @@ double integrate_adaptive(RightHandSide *f, IntegratorMemory *memory, double *x,
             rejected_before = 0;
             /* A step cut short to land on t_end says nothing about the proposal. */
             if (!last || step >= h) h = step * factor;
+            if (f->single_step) break;
         } else {
             memory->n_rejected++;
             rejected_before = 1;
@@ -932,6 +933,10 @@ double integrate_extrapolation(RightHandSide *f, IntegratorMemory *memory, doubl
             }
             H = rejected_before && proposal > step ? step : proposal; /* no growth right after a rejection */
             rejected_before = 0;
+            if (f->single_step) {
+                target = next;
+                break;
+            }
         } else {
             memory->n_rejected++;
             rejected_before = 1;

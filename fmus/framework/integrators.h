@@ -76,6 +76,7 @@ typedef struct {
     int taylor_order;
     double (*taylor_work)[TAYLOR_SLOTS];
     int gbs_columns; /* gbs: its column with the fixed step (tol = 0), its highest with tol > 0 */
+    int single_step; /* rkf45, gbs: return after one accepted step (event checks at each of them) */
     /* J (N_STATES x N_STATES, row-major, J[i][j] = df_i/dx_j) at (t, x) with inputs u (NULL: all zero). */
     void (*jacobian)(void *context, double t, const double *x, const double *u, double *J);
     /* Whether a state is good enough to continue from (finite, not singular, finite outputs);

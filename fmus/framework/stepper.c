@@ -435,7 +435,7 @@ static Status step_with_events(Instance *inst, const char *function, RightHandSi
     const uint64_t events_before = memory->n_events;
     int64_t n, i;
     int reuse;
-    double hs;
+    double hs, reached;
     e.inst = inst;
     e.f = f;
     e.solver = solver;
@@ -456,9 +456,14 @@ static Status step_with_events(Instance *inst, const char *function, RightHandSi
         if (memory->ab_count > 0 && fabs(hs - memory->ab_step) > 1e-10 * hs) memory->ab_count = 0;
         memory->ab_step = hs;
     }
-    for (i = 0, reuse = 0; i < n; i++) {
-        double ta = t + (double)i * hs;
-        const double tb = i + 1 == n ? t_end : t + (double)(i + 1) * hs;
+    /* An adaptive method's indicators are compared at each of its own steps (at most h long): a gap that closes
+     * and opens again between two comparisons (a ball through another) is missed, so h bounds the time between
+     * them. */
+    for (i = 0, reuse = 0, reached = t; e.adaptive ? reached < t_end : i < n; i++) {
+        double ta = e.adaptive ? reached : t + (double)i * hs;
+        /* an adaptive method's substep ends where its one step does, at most h on */
+        double tb = e.adaptive ? (ta + 1.001 * e.h >= t_end ? t_end : ta + e.h)
+                               : i + 1 == n ? t_end : t + (double)(i + 1) * hs;
         double x0[STATE_SLOTS];
         IntegratorMemory m0 = *memory;
         uint64_t events_seen = memory->n_events;
@@ -467,7 +472,10 @@ static Status step_with_events(Instance *inst, const char *function, RightHandSi
         memcpy(x0, x, sizeof x0);
         start_of_step(&e, ta, x0, z0, reuse ? z1 : NULL);
         if (e.adaptive) {
-            if (adaptive_pass(f, solver, memory, x, ta, tb, e.h, e.tol, 0) < tb) {
+            f->single_step = 1;
+            tb = adaptive_pass(f, solver, memory, x, ta, tb, e.h, e.tol, 0);
+            f->single_step = 0;
+            if (!(tb > ta)) { /* no step accepted: out of budget, or the step fell below the resolution of time */
                 memcpy(x, x0, sizeof x0);
                 count_work(memory, f);
                 return fail(inst, function, t, ta, solver_name(solver), e.h, 0);
@@ -553,6 +561,7 @@ static Status step_with_events(Instance *inst, const char *function, RightHandSi
         }
         /* the next step starts with the indicators this one ended with, unless a projection moved the state */
         reuse = !e.departing && !rigid_acting(c, s->active_constraints);
+        reached = tb;
         if (inst->report_step && inst->s.machine_state == MS_STEP_COMPLETE) state_acceptable(inst, tb, x);
     }
     count_work(memory, f);
@@ -598,6 +607,7 @@ Status step_to(Instance *inst, const char *function, double t, double H)
     f.out_of_budget = 0;
     f.taylor_order = s->integer[INT_taylor_order];
     f.gbs_columns = s->integer[INT_gbs_columns];
+    f.single_step = 0;
     if (solver == SOLVER_TAYLOR && !inst->taylor_work) {
         inst->taylor_work = (double (*)[TAYLOR_SLOTS])inst->allocate(TAYLOR_SERIES, sizeof *inst->taylor_work);
         if (!inst->taylor_work) {

@@ -650,7 +650,8 @@ INTERNAL int constrain_motion(const ModelConst *c, double t, const double *x, do
 static inline void model_equations(const ModelConst *c, double t, const double *x, const double *u, double *dx)
 {
     model_free_equations(c, t, x, u, dx);
-    constrain_motion(c, t, x, dx, NULL);
+    /* free flight, the common case between events, needs no geometry */
+    if (N_COMPLIANT > 0 || N_BILATERAL > 0 || (*c->active & RIGID_UNILATERAL_BITS)) constrain_motion(c, t, x, dx, NULL);
 }
 """
 
@@ -663,7 +664,10 @@ def _constraint_header(spec) -> str:
     gaps = ", ".join(f"VR_{c.outputs[0]}" for c in spec.constraints)
     forces = ", ".join(f"VR_{c.outputs[1]}" for c in spec.constraints)
     indicators = ", ".join(f"VR_{c.indicator}" for c in spec.constraints)
+    rigid_unilateral = sum(1 << i for i, c in enumerate(spec.constraints) if not c.compliant and not c.bilateral)
     return (f"#define N_CONSTRAINTS {k}\n#define N_COMPLIANT {sum(c.compliant for c in spec.constraints)}\n"
+            f"#define N_BILATERAL {sum(c.bilateral for c in spec.constraints)}\n"
+            f"#define RIGID_UNILATERAL_BITS {rigid_unilateral:#x}\n"
             f"#include \"constraints.h\"\n"
             f"static const char *const CONSTRAINT_NAMES[N_CONSTRAINTS] = {{{names}}};\n"
             f"static const unsigned CONSTRAINT_GAP_VRS[N_CONSTRAINTS] = {{{gaps}}};\n"
@@ -696,6 +700,8 @@ def _constraint_functions(derivation: Derivation, prepared, state_locals: list[s
         lines.append(f"    g[{k}] = {c_expr(g)};")
         lines += [f"    G[{k * n + j}] = {c_expr(e)};" for j, e in enumerate(G)]
         lines += [f"    rate[{k}] = {c_expr(rate)};", f"    gamma[{k}] = {c_expr(gamma)};"]
+    gap_lines, gap_reduced, _ = _cse_lines([prepared(term.gap) for term in terms], "w")
+    gap_lines += [f"    g[{k}] = {c_expr(e)};" for k, e in enumerate(gap_reduced)]
     mass_lines, mass_reduced, _ = _cse_lines([prepared(derivation.M[i, j]) for i in range(n) for j in range(n)], "w")
     mass_lines += [f"    M[{k}] = {c_expr(e)};" for k, e in enumerate(mass_reduced)]
     signature = "const ModelConst *c, double t, const double *x"
@@ -704,6 +710,9 @@ def _constraint_functions(derivation: Derivation, prepared, state_locals: list[s
         " * gamma = g'' - G a. */",
         f"void model_constraints({signature}, double *g, double *G, double *rate, double *gamma)", "{",
         *_with_locals(state_locals, lines + ["    (void)c, (void)t;"]), "}", "",
+        "/* The gaps alone (what an event indicator needs between events). */",
+        f"void model_gaps({signature}, double *g)", "{", *_with_locals(state_locals, gap_lines + ["    (void)c, (void)t;"]),
+        "}", "",
         "/* The mass matrix d2T/dv2 at (t, x), row by row. */",
         f"void model_mass({signature}, double *M)", "{", *_with_locals(state_locals, mass_lines + ["    (void)c, (void)t, (void)x;"]),
         "}", ""])
