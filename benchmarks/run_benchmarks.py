@@ -84,7 +84,7 @@ def step_cost(args: argparse.Namespace) -> None:
           f"   (instructions per step, callgrind; goal FMU/hand <= {INSTRUCTION_GOAL:.2f})")
     # the hand-written loop exists for the thesis pendulums only; objects with constraints are left out: the
     # textbook loops locate no events, so they would not do the FMU's work (benchmarks/event_benchmark.py)
-    for model in (m for m in object_names() if m not in constrained_names()):
+    for model in args.callgrind_objects or [m for m in object_names() if m not in constrained_names()]:
         fmu, generated = (instructions_per_step(model, mode, args.callgrind_steps) for mode in MODES[:2])
         if model in PENDULUMS:
             hand = instructions_per_step(model, "bare", args.callgrind_steps)
@@ -116,7 +116,14 @@ def main() -> int:
     parser.add_argument("--steps", type=int, default=2_000_000, help="internal steps per timed run")
     parser.add_argument("--callgrind-steps", type=int, default=100_000)
     parser.add_argument("--no-agreement", action="store_true", help="skip section 3 (it rebuilds the old FMUs)")
+    parser.add_argument("--callgrind-objects", type=lambda text: text.split(","), default=None,
+                        help="the objects counted under callgrind, comma-separated (default: every object without "
+                             "constraints)")
     args = parser.parse_args()
+    countable = [m for m in object_names() if m not in constrained_names()]
+    for name in args.callgrind_objects or []:
+        if name not in countable:
+            parser.error(f"--callgrind-objects: {name!r} is not one of {', '.join(countable)}")
     build_fmus()
     step_cost(args)
     evaluations_per_step()

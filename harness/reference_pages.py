@@ -171,7 +171,7 @@ def object_file_page() -> str:
     return _keys_page("Object file", "the object file reader, `harness/objects/object_file.py`", intro,
                       object_file.FORMAT, {"file": "The file", "parameters": "A parameter", "coordinates":
                                            "A coordinate", "energy": "energy", "points": "A point", "forces": "A force",
-                                           "constraints": "A constraint"})
+                                           "constraints": "A constraint", "outputs": "An output"})
 
 
 def ssp_page() -> str:

@@ -491,7 +491,8 @@ def test_input_derivative_ramps_the_force_over_one_step(open_fmu):
 
 @pytest.mark.parametrize("name", PENDULUMS)
 def test_output_derivatives_are_exact(open_fmu, name):
-    """Against a second-order finite difference of the outputs along the trajectory."""
+    """Against a third-order finite difference of the outputs along the trajectory (a second-order one is
+    too coarse at this step for the link tensions, which hold the accelerations)."""
     fmu = open_fmu(name)
     fmu.initialize(solver="nystrom5", h=1e-4, F_x=0.7, F_y=-0.4, d=0.3)
     assert fmu.do_step(0.0, 0.3) == OK
@@ -500,10 +501,10 @@ def test_output_derivatives_are_exact(open_fmu, name):
     rates = fmu.output_derivatives(*outputs)
     delta = 1e-4
     samples = [np.array(fmu.get(*outputs))]
-    for i in range(2):
+    for i in range(3):
         assert fmu.do_step(0.3 + i * delta, delta) == OK
         samples.append(np.array(fmu.get(*outputs)))
-    finite_difference = (-3 * samples[0] + 4 * samples[1] - samples[2]) / (2 * delta)
+    finite_difference = (-11 * samples[0] + 18 * samples[1] - 9 * samples[2] + 2 * samples[3]) / (6 * delta)
     scale = 1 + np.abs(rates)
     assert np.all(np.abs(rates - finite_difference) < 1e-6 * scale), dict(zip(outputs, rates - finite_difference))
 

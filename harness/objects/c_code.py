@@ -182,6 +182,11 @@ def generate_c(derivation: Derivation) -> GeneratedC:
     targets, values = _point_outputs(spec, derivation.positions, derivation.velocities)
     outputs_body = _output_function("real", targets, [prepared(e) for e in values + [derivation.T, derivation.U]],
                                     "&real[VR_E_kin], &real[VR_E_pot], NULL, NULL" if has_linear else None)
+    accelerations_now = {a: sp.Symbol(f"dx[{n + j}]", real=True) for j, a in enumerate(spec.accelerations)}
+    if spec.outputs:
+        outputs_body += _further_outputs("real", [o.name for o in spec.outputs],
+                                         [prepared(o.value.xreplace(accelerations_now)) for o in spec.outputs],
+                                         derivation.inputs)
     outputs_body = _with_locals(real_locals, outputs_body)
     constraint_source = ""
     if spec.constraints:
@@ -193,6 +198,17 @@ def generate_c(derivation: Derivation) -> GeneratedC:
     energy_rates = [total_derivative(e, q, v, accelerations, t) for e in (derivation.T, derivation.U)]
     rates_body = _output_function("rate", targets, [prepared(e) for e in rates + energy_rates],
                                   "NULL, NULL, &rate[VR_E_kin], &rate[VR_E_pot]" if has_linear else None)
+    if spec.outputs:
+        jerk = [sp.Symbol(f"jerk[{n + j}]", real=True) for j in range(n)]
+        input_rates = [sp.Symbol(f"du[{k}]", real=True) for k in range(nf)]
+        output_rates = [_output_rate(o.value, spec, accelerations, derivation.inputs, input_rates, jerk)
+                        for o in spec.outputs]
+        uses_jerk = any(o.value.free_symbols & set(spec.accelerations) for o in spec.outputs)
+        if uses_jerk:  # the accelerations' rates: their directional derivative along (v, a, du)
+            rates_body += [f"    double jerk[{2 * n}], scratch[N_REAL];",
+                           f"    model_directional(c, t, real, dx, dx, du, jerk, scratch);"]
+        rates_body += _further_outputs("rate", [o.name for o in spec.outputs],
+                                       [prepared(e.xreplace(accelerations_now)) for e in output_rates], derivation.inputs)
     rates_body = _with_locals(real_locals, rates_body)
     if spec.constraints:
         rates_body += ["    {", *_inputs_from_real(derivation.inputs),
@@ -201,7 +217,8 @@ def generate_c(derivation: Derivation) -> GeneratedC:
     directional_body = _with_locals(
         real_locals + [f"    const double acc{j} = dx[{n + j}] + c->d * s_{c.velocity};"
                        for j, c in enumerate(spec.coordinates)],
-        _directional_lines(derivation, prepared, targets, values, has_linear))
+        _directional_lines(derivation, prepared, targets, values, has_linear,
+                           _further_output_changes(derivation, prepared, accelerations_now)))
 
     # ---- model_prepare
     prepare = [f"    c->p_{p.name} = real[VR_{p.name}];" for p in parameters]
@@ -329,7 +346,46 @@ def _taylor_function(spec, n: int, nf: int, diagonal: bool, pivots: list, mass: 
     return _TaylorFunction(True, "", code.series, lines)
 
 
-def _directional_lines(derivation: Derivation, prepared, targets: list[str], values: list, has_linear: bool) -> list[str]:
+def _further_outputs(array: str, names: list[str], values: list, inputs: list) -> list[str]:
+    """array[VR_<name>] = value for the object file's further outputs, in a block of their own (with the force
+    inputs from real where they need them)."""
+    lines, reduced, _ = _cse_lines(values, "r", indent="        ")
+    lines += [f"        {array}[VR_{name}] = {c_expr(e)};" for name, e in zip(names, reduced)]
+    if any(re.search(r"\bu\[", line) for line in lines):
+        lines = _inputs_from_real(inputs) + lines
+    return ["    {", *lines, "    }"]
+
+
+def _output_rate(value, spec, accelerations, inputs, input_rates, jerk):
+    """d/dt of a further output: along the motion (q' = v, v' = a), the inputs' rates and, for the
+    accelerations it holds, their rates (jerk)."""
+    rate = total_derivative(value, spec.q, spec.v, accelerations, spec.time)
+    rate = rate.xreplace(dict(zip(accelerations, spec.accelerations)))
+    rate += sum((sp.diff(value, F) * dF for F, dF in zip(inputs, input_rates)), sp.Integer(0))
+    rate += sum((sp.diff(value, a) * da for a, da in zip(spec.accelerations, jerk)), sp.Integer(0))
+    return rate
+
+
+def _further_output_changes(derivation: Derivation, prepared, accelerations_now: dict) -> list[str]:
+    """change[VR_<name>] of each further output along the seed, once ddx holds the accelerations' change."""
+    spec, n = derivation.spec, derivation.n
+    if not spec.outputs:
+        return []
+    seeds = [sp.Symbol(f"seed_x[{j}]", real=True) for j in range(2 * n)]
+    seed_u = [sp.Symbol(f"seed_u[{k}]", real=True) for k in range(len(derivation.inputs))]
+    changed = [sp.Symbol(f"ddx[{n + j}]", real=True) for j in range(n)]
+    changes = []
+    for output in spec.outputs:
+        value = output.value
+        change = sum((sp.diff(value, x) * dx for x, dx in zip(list(spec.q) + list(spec.v), seeds)), sp.Integer(0))
+        change += sum((sp.diff(value, F) * dF for F, dF in zip(derivation.inputs, seed_u)), sp.Integer(0))
+        change += sum((sp.diff(value, a) * da for a, da in zip(spec.accelerations, changed)), sp.Integer(0))
+        changes.append(prepared(change.xreplace(accelerations_now)))
+    return _further_outputs("change", [o.name for o in spec.outputs], changes, derivation.inputs)
+
+
+def _directional_lines(derivation: Derivation, prepared, targets: list[str], values: list, has_linear: bool,
+                       further: list[str]) -> list[str]:
     """The body of model_directional: the exact Jacobian of (v, a) and of the outputs times a seed.
     Differentiating M a = f + Q along the seed (dq, dv, du) gives M da = df + dQ - dM a, solved with
     the same LDL^T factorization as the right-hand side; the damping adds -d dv."""
@@ -355,7 +411,8 @@ def _directional_lines(derivation: Derivation, prepared, targets: list[str], val
         lines += ["    if (c->linear) {",
                   "        linear_model_directional(&c->lin, c->d, real, seed_x, seed_u, ddx, &change[VR_E_kin], "
                   "&change[VR_E_pot]);",
-                  "        change[VR_E] = change[VR_E_kin] + change[VR_E_pot];", "        return;", "    }"]
+                  "        change[VR_E] = change[VR_E_kin] + change[VR_E_pot];",
+                  *["    " + line for line in further], "        return;", "    }"]
     lines.append("    change[VR_E] = change[VR_E_kin] + change[VR_E_pot];")
     # the accelerations
     M = derivation.M
@@ -375,6 +432,7 @@ def _directional_lines(derivation: Derivation, prepared, targets: list[str], val
         lines.insert(0, f"    const double u[{len(derivation.inputs)}] = {{{values_of_u}}};")
     lines += [f"    ddx[{j}] = seed_x[{n + j}];" for j in range(n)]
     lines += [f"    ddx[{n + j}] = a{j} - c->d * seed_x[{n + j}];" for j in range(n)]
+    lines += further
     if any("goto singular" in line for line in lines):
         lines += ["    return;", "singular:", f"    {{ int i; for (i = 0; i < {2 * n}; i++) ddx[i] = NAN; }}"]
     return lines

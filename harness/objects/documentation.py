@@ -44,6 +44,12 @@ def equations_html(derivation: Derivation) -> str:
         names = ", ".join(point.outputs.values())
         rows.append(f"<li>{html.escape(point.name)} = ({coordinates}); outputs {html.escape(names)}</li>")
     rows.append("</ul>")
+    if spec.outputs:
+        rows.append("<h3>Further outputs</h3><ul>")
+        for output in spec.outputs:
+            unit = f" ({html.escape(output.unit)})" if output.unit else ""
+            rows.append(f"<li>{html.escape(output.name)}{unit} = {_math(output.value)}</li>")
+        rows.append("</ul>")
     if spec.forces:
         rows.append("<h3>Force inputs</h3><ul>")
         for force in spec.forces:

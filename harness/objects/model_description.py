@@ -155,6 +155,9 @@ def variables(derivation: Derivation) -> list[Variable]:
     result.append(Variable("gbs_columns", "parameter", "tunable", type="Integer", start=GBS_COLUMNS, min=2,
                            max=GBS_COLUMNS, description=f"columns k of gbs's extrapolation table: its order 2 k with the "
                                                         f"fixed step h (tol = 0), its highest order with tol > 0"))
+    # the object file's further outputs come last, so that every other value reference stays
+    result += [Variable(o.name, "output", "continuous", initial="calculated", unit=o.unit, description=o.description)
+               for o in spec.outputs]
     return result
 
 

@@ -67,6 +67,8 @@ FORMAT = {
                    "not, the state is singular",
         "constraints": "table of constraints, each `NAME = { gap = \"...\", ... }` (keys below): contacts, strings, "
                        "walls and rods, with outputs `NAME_gap`, `NAME_force` and the counter `n_events`",
+        "outputs": "table of further outputs, each `NAME = { value = \"...\", unit = \"N\" }` (keys below): what "
+                   "the motion makes, such as the tension a rod carries",
     },
     "parameters": {
         "start": "default value (required but for d, h and tol)",
@@ -113,6 +115,13 @@ FORMAT = {
         "damping": "the compliant law's damping in s per gap unit, a number >= 0 or a parameter's name (default 0)",
         "unit": "the gap's unit (default \"m\"; \"rad\" makes its force a torque in N.m)",
         "description": "text for the constraint's outputs",
+    },
+    "outputs": {
+        "value": "its value (required): an expression in parameters, coordinates, velocities, t, the force inputs "
+                 "and the accelerations `der(VELOCITY)` (the motion's, damping included; not in an object with "
+                 "constraints)",
+        "unit": "its unit",
+        "description": "text for the output",
     },
     "forces": {
         "point": "the point the force acts on (required); inputs `<force>_x`, `<force>_y` (and `_z`)",
@@ -197,6 +206,21 @@ class Constraint:
 
 
 @dataclass
+class Output:
+    """A further output: value is an expression in parameters, coordinates, velocities, t, force inputs and
+    the accelerations (the symbols of ObjectSpec.accelerations)."""
+    name: str
+    value: sp.Expr
+    unit: str = ""
+    description: str = ""
+
+
+def acceleration_symbol(velocity: str) -> sp.Symbol:
+    """The symbol der(VELOCITY) of an output's expression stands for."""
+    return sp.Symbol(f"der({velocity})", real=True)
+
+
+@dataclass
 class ObjectSpec:
     """One object as its file describes it, with every expression parsed into SymPy."""
     path: Path
@@ -212,6 +236,12 @@ class ObjectSpec:
     require: list[sp.Expr]            # expressions that stay positive; the state is singular elsewhere
     constraints: list[Constraint] = field(default_factory=list)
     symbols: dict[str, sp.Symbol] = field(repr=False, default_factory=dict)
+    outputs: list[Output] = field(default_factory=list)
+
+    @property
+    def accelerations(self) -> list[sp.Symbol]:
+        """The symbols der(VELOCITY) that outputs may hold, in the order of the coordinates."""
+        return [acceleration_symbol(c.velocity) for c in self.coordinates]
 
     @property
     def time(self) -> sp.Symbol:
@@ -524,11 +554,48 @@ def read_object_file(path: str | Path, text: str | None = None) -> ObjectSpec:
 
     constraints = _read_constraints(reader, reader.table(data, "constraints", required=False), claim, symbols,
                                     parameters, params | q | t, q)
+    inputs = {symbols[name] for force in forces for name in force.inputs.values()}
+    outputs = _read_outputs(reader, reader.table(data, "outputs", required=False), claim, symbols, coordinates,
+                            params | q | v | t | inputs, bool(constraints))
     spec = ObjectSpec(path, identifier, description, parameters, coordinates, T, U, points, forces, rest, require,
-                      constraints, symbols)
+                      constraints, symbols, outputs)
     if not points:
         raise reader.fail("points", "an object needs at least one point (its position is what a scene shows)")
+    for output in outputs:
+        if spec.rheonomic and output.value.free_symbols & set(spec.accelerations):
+            raise reader.fail(f"outputs.{output.name}.value", "the accelerations of a driven object (t in its energies "
+                                                              "or points) are not offered to outputs")
     return spec
+
+
+def _read_outputs(reader: _Reader, table: dict, claim, symbols: dict, coordinates: list[Coordinate], allowed: set,
+                  constrained: bool) -> list[Output]:
+    der = sp.Function("der")
+    velocities = {symbols[c.velocity]: c.velocity for c in coordinates}
+    outputs = []
+    for name, entry in table.items():
+        where = f"outputs.{name}"
+        claim(name, where)
+        if not isinstance(entry, dict):
+            raise reader.fail(where, 'must be a table such as { value = "m*(g*cos(phi) + L*omega**2)", unit = "N" }')
+        reader.known_keys(entry, set(FORMAT["outputs"]), where)
+        if "value" not in entry:
+            raise reader.fail(f"{where}.value", "missing")
+        value = reader.expression(entry["value"], f"{where}.value", {**symbols, "der": der}, allowed)
+        replacements = {}
+        for call in value.atoms(sp.Function):
+            if call.func != der:
+                continue
+            if len(call.args) != 1 or call.args[0] not in velocities:
+                raise reader.fail(f"{where}.value", f"{call}: der() takes one velocity ({', '.join(velocities.values())})")
+            if constrained:
+                raise reader.fail(f"{where}.value", f"{call}: an object with constraints offers no accelerations to "
+                                                    "its outputs (its constraint forces are outputs already)")
+            replacements[call] = acceleration_symbol(velocities[call.args[0]])
+        outputs.append(Output(name, value.xreplace(replacements),
+                              reader.string(entry, "unit", f"{where}.unit", ""),
+                              reader.string(entry, "description", f"{where}.description", "")))
+    return outputs
 
 
 def _read_constraints(reader: _Reader, table: dict, claim, symbols: dict, parameters: list[Parameter],

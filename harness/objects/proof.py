@@ -75,6 +75,7 @@ def _names_of(spec: ObjectSpec) -> list[str]:
         names += [c.name, c.velocity, f"der({c.name})", f"der({c.velocity})"]
     names += [name for force in spec.forces for name in force.inputs.values()]
     names += [name for point in spec.points for name in point.outputs.values()]
+    names += [output.name for output in spec.outputs]
     return names + ["E_kin", "E_pot", "E", "solver", *COUNTER_NAMES]
 
 
