@@ -67,6 +67,14 @@ class Row:
     run: object  # () -> None, the timed run
     simulated: float  # seconds the timed run covers
     seconds: list[float]
+    unstable: bool = False  # MuJoCo found its accelerations non-finite or huge and reset the simulation
+
+
+def mujoco_unstable(mujoco, data) -> bool:
+    """Whether MuJoCo warned of non-finite or huge accelerations (after which it resets the state to rest)."""
+    return any(data.warning[int(kind)].number > 0 for kind in (mujoco.mjtWarning.mjWARN_BADQACC,
+                                                                mujoco.mjtWarning.mjWARN_BADQVEL,
+                                                                mujoco.mjtWarning.mjWARN_BADQPOS))
 
 
 def timed(run) -> float:
@@ -189,10 +197,12 @@ def mujoco_cradle(mujoco, integrator: str, dt: float, solref: str, expected: np.
     start()
     mujoco.mj_step(model, data, nstep=round((PERIOD / 4 + AFTER) / dt))
     velocity = -np.array(data.qvel)  # the FMU's angles turn the other way
+    unstable = mujoco_unstable(mujoco, data)
     start()
     before = energy()
     steps = round(PERIODS * PERIOD / dt)
     mujoco.mj_step(model, data, nstep=steps)
+    unstable = unstable or mujoco_unstable(mujoco, data)
     errors = (float(np.max(np.abs(velocity - expected))) / IMPACT_SPEED, abs(energy() / before - 1.0))
     period_steps = round(PERIOD / dt)
 
@@ -201,7 +211,7 @@ def mujoco_cradle(mujoco, integrator: str, dt: float, solref: str, expected: np.
         begin = time.perf_counter()
         mujoco.mj_step(model, data, nstep=period_steps)
         return time.perf_counter() - begin
-    return Row(f"MuJoCo {integrator} dt {dt:g} solref {solref}", errors, run, period_steps * dt, [])
+    return Row(f"MuJoCo {integrator} dt {dt:g} solref {solref}", errors, run, period_steps * dt, [], unstable)
 
 
 def mujoco_string(mujoco, integrator: str, dt: float, exact: tuple[float, float]) -> Row:
@@ -226,6 +236,9 @@ def mujoco_string(mujoco, integrator: str, dt: float, exact: tuple[float, float]
         times[i] = data.time - dt
         force[i] = data.efc_force[:data.nefc].sum() if data.nefc else 0.0
         length[i] = data.ten_length[0]
+    unstable = mujoco_unstable(mujoco, data)
+    if not np.any((force == 0.0) & (times > 0.1)):  # the string never went slack: no event to time
+        return Row(f"MuJoCo {integrator} dt {dt:g}", (math.inf, math.inf), lambda: 0.0, steps * dt, [], True)
     slack_index = int(np.argmax((force == 0.0) & (times > 0.1)))  # the first step without tension
     a, b = force[slack_index - 2], force[slack_index - 1]  # the last two with it, extrapolated to zero
     slack = times[slack_index - 1] + (times[slack_index - 1] - times[slack_index - 2]) * b / (a - b)
@@ -240,7 +253,8 @@ def mujoco_string(mujoco, integrator: str, dt: float, exact: tuple[float, float]
         begin = time.perf_counter()
         mujoco.mj_step(model, data, nstep=steps)
         return time.perf_counter() - begin
-    return Row(f"MuJoCo {integrator} dt {dt:g}", (abs(slack - exact[0]), abs(taut - exact[1])), run, steps * dt, [])
+    return Row(f"MuJoCo {integrator} dt {dt:g}", (abs(slack - exact[0]), abs(taut - exact[1])), run, steps * dt, [],
+               unstable)
 
 
 # ---------------------------------------------------------------- side by side
@@ -256,13 +270,17 @@ def report(title: str, columns: tuple[str, ...], rows: list[Row], goal: float) -
     print(f"{'setting':44s} " + " ".join(f"{c:>12s}" for c in columns) + f" {'s per sim s':>12s}")
     cost = {row.name: statistics.median(row.seconds) / row.simulated for row in rows}
     for row in rows:
-        print(f"{row.name:44s} " + " ".join(f"{e:12.2e}" for e in row.errors) + f" {cost[row.name]:12.3e}")
+        note = "  (unstable: MuJoCo reset it)" if row.unstable else ""
+        print(f"{row.name:44s} " + " ".join(f"{e:12.2e}" for e in row.errors) + f" {cost[row.name]:12.3e}{note}")
     fmus = [row for row in rows if row.name.startswith("FMU")]
-    peers = [row for row in rows if not row.name.startswith("FMU")]
+    peers = [row for row in rows if not row.name.startswith("FMU") and not row.unstable]
     if not fmus:
         print(f"no FMU setting tried reaches {goal:g}")
         return
     fastest = min(fmus, key=lambda row: cost[row.name])
+    if not peers:
+        print("every MuJoCo setting tried was unstable")
+        return
     best = min(peers, key=lambda row: max(row.errors))
     print(f"MuJoCo's best setting ({best.name}, error {max(best.errors):.1e}) takes "
           f"{cost[best.name] / cost[fastest.name]:.0f} times the computing of the FMU's fastest ({fastest.name}, "

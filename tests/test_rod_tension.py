@@ -68,7 +68,7 @@ def test_the_simple_pendulums_rod_tension_is_the_cartesian_pendulums_rod_force(f
 
 def test_the_double_pendulums_link_tensions_are_the_multipliers_of_its_rods(fmu_paths):
     """Point masses at the links' ends (J = 0, s = l): each link is a rod, and its tension is the rod's
-    Lagrange multiplier, at random states, parameters and tip forces."""
+    Lagrange multiplier, at random states, parameters, tip forces and damping."""
     cartesian = NumericLagrangian(read_object_file("CartesianDoublePendulum.toml", CARTESIAN_DOUBLE))
     rng = np.random.default_rng(11)
     with FmuInstance(fmu_paths["DoublePendulum"]) as fmu:
@@ -76,9 +76,10 @@ def test_the_double_pendulums_link_tensions_are_the_multipliers_of_its_rods(fmu_
             m1, m2, l1, l2 = rng.uniform(0.3, 2.0, 4)
             phi1, phi2, omega1, omega2 = rng.uniform(-3, 3), rng.uniform(-3, 3), rng.uniform(-3, 3), rng.uniform(-3, 3)
             Fx, Fy = rng.uniform(-2, 2, 2)
+            d = rng.uniform(0.0, 0.5)  # a drag -d v on each mass in both forms
             fmu.reset()
             fmu.initialize(m1=m1, m2=m2, l1=l1, l2=l2, J1=0.0, J2=0.0, s1=l1, s2=l2, phi1=phi1, phi2=phi2,
-                           omega1=omega1, omega2=omega2, F_x=Fx, F_y=Fy)
+                           omega1=omega1, omega2=omega2, F_x=Fx, F_y=Fy, d=d)
             tensions = fmu.get("link1_tension", "link2_tension")
             x1, y1 = l1 * math.sin(phi1), -l1 * math.cos(phi1)
             vx1, vy1 = l1 * omega1 * math.cos(phi1), l1 * omega1 * math.sin(phi1)
@@ -86,7 +87,7 @@ def test_the_double_pendulums_link_tensions_are_the_multipliers_of_its_rods(fmu_
             vx2, vy2 = vx1 + l2 * omega2 * math.cos(phi2), vy1 + l2 * omega2 * math.sin(phi2)
             multipliers = cartesian.forces({"g": G, "m1": m1, "m2": m2, "l1": l1, "l2": l2, "x1": x1, "y1": y1, "x2": x2,
                                             "y2": y2, "vx1": vx1, "vy1": vy1, "vx2": vx2, "vy2": vy2, "F_x": Fx,
-                                            "F_y": Fy})
+                                            "F_y": Fy, "d": d})
             assert tensions == pytest.approx(list(multipliers), rel=1e-9, abs=1e-9)
 
 

@@ -150,6 +150,32 @@ static Status fail(Instance *inst, const char *function, double t, double t_good
     return STATUS_DISCARD;
 }
 
+/* An adaptive method that stopped short of its step (out of budget, or its step underflowed) at `reached`: the
+ * call ends there, with the reason. */
+static Status stopped_short(Instance *inst, const char *function, const RightHandSide *f, int solver, double t,
+                            double reached)
+{
+    const char *method = solver_name(solver);
+    const double tol = inst->s.real[VR_tol];
+    finish(inst, t, reached - t, reached);
+    if (f->out_of_budget)
+        log_discard(inst, "%s: %s with tol = %g used its %.0f right-hand-side evaluations "
+                    "allowed per call at t = %.17g; stopped at the last successful time %.17g (take shorter "
+                    "communication steps or a larger tol)", function, method, tol, MAX_EVALUATIONS_PER_CALL,
+                    reached, reached);
+    else if (solver == SOLVER_TAYLOR)
+        log_discard(inst, "%s: taylor of order %d with tol = %g: the step its coefficients allow "
+                    "underflowed at t = %.17g (tol is out of reach at this order in double precision, or "
+                    "the state is non-finite or singular there: take a larger tol or a higher "
+                    "taylor_order); stopped at the last successful time %.17g", function,
+                    inst->s.integer[INT_taylor_order], tol, reached, reached);
+    else
+        log_discard(inst, "%s: %s with tol = %g: the step size underflowed at t = %.17g (the "
+                    "state is non-finite, singular or too stiff there); stopped at the last successful "
+                    "time %.17g", function, method, tol, reached, reached);
+    return STATUS_DISCARD;
+}
+
 /* The work of a call, into the counters. */
 static void count_work(IntegratorMemory *memory, const RightHandSide *f)
 {
@@ -205,6 +231,7 @@ typedef struct {
     const double *x_start;
     double t_start;
     int32_t departing, decided;
+    int short_of; /* a trial step of an adaptive method stopped short: the call stops */
 } EventStepper;
 
 static const double *inputs_at(const RightHandSide *f, double t, double *u)
@@ -222,14 +249,15 @@ static void indicators_at(const EventStepper *e, double t, const double *x, doub
                                                          inputs_at(e->f, t, u), z);
 }
 
-/* x = the method's step of theta from (t, x0), with the integrator memory `memory` left as it was. */
-static void trial_step(const EventStepper *e, const IntegratorMemory *memory, const double *x0, double t,
+/* x = the method's step of theta from (t, x0), with the integrator memory `memory` left as it was. An adaptive
+ * method that stops short (out of budget, its step underflowed) sets e->short_of. */
+static void trial_step(EventStepper *e, const IntegratorMemory *memory, const double *x0, double t,
                        double theta, double *x)
 {
     IntegratorMemory scratch = *memory;
     memcpy(x, x0, STATE_SLOTS * sizeof(double));
     if (e->adaptive) {
-        adaptive_pass(e->f, e->solver, &scratch, x, t, t + theta, e->h, e->tol, 0);
+        if (adaptive_pass(e->f, e->solver, &scratch, x, t, t + theta, e->h, e->tol, 0) < t + theta) e->short_of = 1;
     } else {
         scratch.ab_count = 0;
         integrate_fixed(e->f, e->solver, &scratch, x, t, theta, 0, 1, 0);
@@ -441,6 +469,7 @@ static Status step_with_events(Instance *inst, const char *function, RightHandSi
     e.solver = solver;
     e.h = s->real[VR_h];
     e.tol = s->real[VR_tol];
+    e.short_of = 0;
     e.adaptive = solver == SOLVER_RKF45 || ((solver == SOLVER_GBS || solver == SOLVER_TAYLOR) && e.tol > 0.0);
     n = (int64_t)fmax(1.0, ceil(H / e.h - 1e-9));
     hs = H / (double)n;
@@ -477,8 +506,9 @@ static Status step_with_events(Instance *inst, const char *function, RightHandSi
             f->single_step = 0;
             if (!(tb > ta)) { /* no step accepted: out of budget, or the step fell below the resolution of time */
                 memcpy(x, x0, sizeof x0);
+                *memory = m0;
                 count_work(memory, f);
-                return fail(inst, function, t, ta, solver_name(solver), e.h, 0);
+                return stopped_short(inst, function, f, solver, t, ta);
             }
         } else {
             integrate_fixed(f, solver, memory, x, t, hs, i, 1, 0);
@@ -496,6 +526,12 @@ static Status step_with_events(Instance *inst, const char *function, RightHandSi
             const int32_t active_before = s->active_constraints;
             memcpy(located, x, sizeof located); /* the step's end, past the event */
             theta = locate_event(&e, &m0, x0, ta, tb - ta, z0, located, x);
+            if (e.short_of) { /* a trial step stopped short: the event is not located; back to the step's start */
+                memcpy(x, x0, sizeof x0);
+                *memory = m0;
+                count_work(memory, f);
+                return stopped_short(inst, function, f, solver, t, ta);
+            }
             ta += theta;
             *memory = m0;
             memory->ab_count = 0;
@@ -547,6 +583,12 @@ static Status step_with_events(Instance *inst, const char *function, RightHandSi
             if (tb - ta > 4.0 * DBL_EPSILON * fabs(tb)) {
                 remainder = !e.adaptive;
                 trial_step(&e, &m0, x0, ta, tb - ta, x);
+                if (e.short_of) { /* the rest of the step stopped short: the call ends at the event */
+                    memcpy(x, x0, sizeof x0);
+                    *memory = m0;
+                    count_work(memory, f);
+                    return stopped_short(inst, function, f, solver, t, ta);
+                }
                 indicators_at(&e, tb, x, z1);
                 for (k = 0; k < N_CONSTRAINTS; k++) any |= crossed(&e, k, z0[k], z1[k]);
             } else {
@@ -669,25 +711,7 @@ Status step_to(Instance *inst, const char *function, double t, double H)
             return finish_with(inst, t, H, checked, f.inputs_vary);
         }
         count_work(memory, &f);
-        if (reached < t_end) {
-            finish(inst, t, reached - t, reached);
-            if (f.out_of_budget)
-                log_discard(inst, "%s: %s with tol = %g used its %.0f right-hand-side evaluations "
-                            "allowed per call at t = %.17g; stopped at the last successful time %.17g (take shorter "
-                            "communication steps or a larger tol)", function, method, s->real[VR_tol],
-                            MAX_EVALUATIONS_PER_CALL, reached, reached);
-            else if (solver == SOLVER_TAYLOR)
-                log_discard(inst, "%s: taylor of order %d with tol = %g: the step its coefficients allow "
-                            "underflowed at t = %.17g (tol is out of reach at this order in double precision, or "
-                            "the state is non-finite or singular there: take a larger tol or a higher "
-                            "taylor_order); stopped at the last successful time %.17g", function,
-                            s->integer[INT_taylor_order], s->real[VR_tol], reached, reached);
-            else
-                log_discard(inst, "%s: %s with tol = %g: the step size underflowed at t = %.17g (the "
-                            "state is non-finite, singular or too stiff there); stopped at the last successful "
-                            "time %.17g", function, method, s->real[VR_tol], reached, reached);
-            return STATUS_DISCARD;
-        }
+        if (reached < t_end) return stopped_short(inst, function, &f, solver, t, reached);
         return finish(inst, t, H, t_end);
     } else {
         const double substeps = ceil(H / h - 1e-9);

@@ -107,6 +107,7 @@ def generate_c(derivation: Derivation) -> GeneratedC:
     for k, F in enumerate(derivation.inputs):
         names.mapping[F] = sp.Symbol(f"u[{k}]", real=True)
     names.mapping[spec.time] = sp.Symbol("t", real=True)
+    names.mapping[spec.symbols["d"]] = sp.Symbol("c->d", real=True)  # the damping, in an output's expression
     accelerations = [sp.Symbol(f"a_{j}", real=True) for j in range(n)]
     constants = _Constants({names.mapping[spec.symbols[p.name]] for p in parameters})
 

@@ -55,11 +55,18 @@ def dependencies(derivation: Derivation, initial: bool = False) -> dict[str, set
         for kind, name in point.outputs.items():
             axis = "xyz".index(kind[-1])
             result[name] = of(velocity[axis] if kind.startswith("v_") else position[axis])
+    damping = spec.symbols["d"]
     for output in spec.outputs:  # what its expression holds, and what the accelerations in it need
         result[output.name] = of(output.value)
         for c, acceleration in zip(spec.coordinates, spec.accelerations):
             if acceleration in output.value.free_symbols:
-                result[output.name] |= result[f"der({c.velocity})"]
+                result[output.name] |= result[f"der({c.velocity})"] - {"d"}
+        # the damping: in the accelerations (each gets -d v) and written out; a tension that adds d v back
+        # to the acceleration does not depend on it
+        undamped = output.value.xreplace({a: sp.Symbol(f"undamped {a}") - damping * velocity
+                                          for a, velocity in zip(spec.accelerations, v)})
+        if initial and sp.expand(sp.diff(undamped, damping)) != 0:
+            result[output.name].add("d")
     result["E_kin"], result["E_pot"] = of(derivation.T) | switch("E_kin"), of(derivation.U) | switch("E_pot")
     result["E"] = result["E_kin"] | result["E_pot"]
     for counter in COUNTER_NAMES:

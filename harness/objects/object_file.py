@@ -117,9 +117,9 @@ FORMAT = {
         "description": "text for the constraint's outputs",
     },
     "outputs": {
-        "value": "its value (required): an expression in parameters, coordinates, velocities, t, the force inputs "
-                 "and the accelerations `der(VELOCITY)` (the motion's, damping included; not in an object with "
-                 "constraints)",
+        "value": "its value (required): an expression in parameters (`d` included: the damping, a drag -d v on "
+                 "every bit of mass), coordinates, velocities, t, the force inputs and the accelerations "
+                 "`der(VELOCITY)` (the motion's, damping included; not in an object with constraints)",
         "unit": "its unit",
         "description": "text for the output",
     },
@@ -556,7 +556,7 @@ def read_object_file(path: str | Path, text: str | None = None) -> ObjectSpec:
                                     parameters, params | q | t, q)
     inputs = {symbols[name] for force in forces for name in force.inputs.values()}
     outputs = _read_outputs(reader, reader.table(data, "outputs", required=False), claim, symbols, coordinates,
-                            params | q | v | t | inputs, bool(constraints))
+                            params | q | v | t | inputs | {symbols["d"]}, bool(constraints))
     spec = ObjectSpec(path, identifier, description, parameters, coordinates, T, U, points, forces, rest, require,
                       constraints, symbols, outputs)
     if not points:
