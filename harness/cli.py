@@ -121,10 +121,10 @@ class StageReport:
 
 def command_derive(args: argparse.Namespace) -> int:
     from harness.objects.build import derive_fmu
-    from harness.output import output_folder
+    from harness.output import usable_folder
     report = StageReport(f"{args.object_file}: ", enabled=not args.quiet)
-    try:
-        derived = derive_fmu(args.object_file, output_folder(args.out, "--out"), report)
+    try:  # the folder is made when the FMUs are written: a refused file leaves none behind
+        derived = derive_fmu(args.object_file, usable_folder(args.out, "--out"), report)
     finally:
         report.close()
     print(f"wrote {derived.path} (FMI 2.0) and {derived.fmi3_path} (FMI 3.0)")

@@ -78,11 +78,17 @@ def _check_parents(path: Path, option: str) -> None:
             return
 
 
-def output_folder(text: str | Path, option: str) -> Path:
+def usable_folder(text: str | Path, option: str) -> Path:
+    """The folder `text`, checked but not made: an existing folder, or one that can be made below one."""
     path = Path(text)
     if path.exists() and not path.is_dir():
         raise HarnessError(f"{option} {path}: is a file, not a folder")
     _check_parents(path, option)
+    return path
+
+
+def output_folder(text: str | Path, option: str) -> Path:
+    path = usable_folder(text, option)
     try:
         path.mkdir(parents=True, exist_ok=True)
     except OSError as error:

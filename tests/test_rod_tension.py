@@ -8,6 +8,9 @@ finite differences of the FMU's recorded motion."""
 from __future__ import annotations
 
 import math
+import subprocess
+import sys
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -16,7 +19,7 @@ from fmpy import simulate_fmu
 from harness.fmi.fmu_instance import FmuInstance
 from harness.fmi.methods import SOLVERS
 from harness.objects.numeric_route import NumericLagrangian
-from harness.objects.object_file import read_object_file
+from harness.objects.object_file import ObjectFileError, read_object_file
 
 G = 9.81
 
@@ -109,3 +112,37 @@ def test_a_rigid_links_tension_is_newtons_law_for_its_centre_of_gravity(fmu_path
     joint_force = m2 * (acceleration - np.array([[0.0], [-G]]))
     tension = -(joint_force * along).sum(axis=0)
     assert np.max(np.abs(tension - result["link2_tension"][2:-2])) < 1e-5
+
+
+# ---------------------------------------------------------------- what an outputs table may not say
+
+SIMPLE = (Path(__file__).resolve().parent.parent / "modelDescription" / "SimplePendulum.toml").read_text()
+
+
+@pytest.mark.parametrize("line, message", [
+    ('rod_tension = { value = "der(phi)" }', "der(phi): der() takes one velocity (omega)"),
+    ('rod_tension = { value = "der(omega, omega)" }', "der() takes one velocity"),
+    ('rod_tension = { unit = "N" }', "outputs.rod_tension.value: missing"),
+    ('rod_tension = { value = "m*g", colour = "red" }', "outputs.rod_tension.colour: unknown key"),
+    ('x = { value = "m*g" }', "outputs.x: 'x' is already used by points.bob.names.x"),
+    ('rod_tension = { value = "m*g*q" }', "unknown symbol 'q'"),
+])
+def test_an_output_that_cannot_be_made_is_named(line, message):
+    text = SIMPLE[:SIMPLE.index("[outputs]")] + "[outputs]\n" + line + "\n"
+    with pytest.raises(ObjectFileError) as caught:
+        read_object_file("SimplePendulum.toml", text)
+    assert message in str(caught.value) and "\n" not in str(caught.value)
+
+
+def test_a_refused_object_file_leaves_no_output_folder(tmp_path):
+    """Accelerations in the outputs of an object with constraints are refused by name, exit code 2, and the
+    --out folder the command was asked to make is not made."""
+    source = tmp_path / "Swing.toml"
+    text = SIMPLE.replace('rod_tension = { value = "', 'rod_tension = { value = "der(omega) + ')
+    source.write_text(text + '\n[constraints]\nwall = { gap = "phi + 1", unit = "rad" }\n')
+    out = tmp_path / "new" / "fmus"
+    result = subprocess.run([sys.executable, "-m", "harness", "derive", str(source), "--out", str(out)],
+                            capture_output=True, text=True, cwd=Path(__file__).resolve().parent.parent)
+    assert result.returncode == 2 and "Traceback" not in result.stderr
+    assert "offers no accelerations to its outputs" in result.stderr
+    assert not (tmp_path / "new").exists()

@@ -76,7 +76,10 @@ def derive_fmu(object_file: str | Path, out: str | Path, progress: Callable[[str
         packed = {version: _package(version, compiler, object_file, generated.identifier, folder, work)
                   for version in targets}
         for version, target in targets.items():
-            target.parent.mkdir(parents=True, exist_ok=True)
+            try:
+                target.parent.mkdir(parents=True, exist_ok=True)
+            except OSError as error:
+                raise HarnessError(f"--out {out}: cannot create the folder {target.parent} ({error.strerror})") from None
             with written(target, binary=True) as sink:  # each FMU appears whole or not at all
                 sink.write(packed[version].read_bytes())
     return DerivedFmu(generated.identifier, targets[2], targets[3])
