@@ -451,6 +451,17 @@ static double locate_event(EventStepper *e, const IntegratorMemory *memory, cons
     return hi;
 }
 
+/* An adaptive method stopped short inside a substep with events: the state and the integrator memory go back to
+ * where they were at ta (x0, m0), and the call ends there. */
+static Status stopped_at(Instance *inst, const char *function, RightHandSide *f, int solver, double t, double ta,
+                         double *x, const double *x0, IntegratorMemory *memory, const IntegratorMemory *m0)
+{
+    memcpy(x, x0, STATE_SLOTS * sizeof(double));
+    *memory = *m0;
+    count_work(memory, f);
+    return stopped_short(inst, function, f, solver, t, ta);
+}
+
 static Status step_with_events(Instance *inst, const char *function, RightHandSide *f, int solver, double t, double H)
 {
     SimState *s = &inst->s;
@@ -505,10 +516,7 @@ static Status step_with_events(Instance *inst, const char *function, RightHandSi
             tb = adaptive_pass(f, solver, memory, x, ta, tb, e.h, e.tol, 0);
             f->single_step = 0;
             if (!(tb > ta)) { /* no step accepted: out of budget, or the step fell below the resolution of time */
-                memcpy(x, x0, sizeof x0);
-                *memory = m0;
-                count_work(memory, f);
-                return stopped_short(inst, function, f, solver, t, ta);
+                return stopped_at(inst, function, f, solver, t, ta, x, x0, memory, &m0);
             }
         } else {
             integrate_fixed(f, solver, memory, x, t, hs, i, 1, 0);
@@ -527,10 +535,7 @@ static Status step_with_events(Instance *inst, const char *function, RightHandSi
             memcpy(located, x, sizeof located); /* the step's end, past the event */
             theta = locate_event(&e, &m0, x0, ta, tb - ta, z0, located, x);
             if (e.short_of) { /* a trial step stopped short: the event is not located; back to the step's start */
-                memcpy(x, x0, sizeof x0);
-                *memory = m0;
-                count_work(memory, f);
-                return stopped_short(inst, function, f, solver, t, ta);
+                return stopped_at(inst, function, f, solver, t, ta, x, x0, memory, &m0);
             }
             ta += theta;
             *memory = m0;
@@ -584,10 +589,7 @@ static Status step_with_events(Instance *inst, const char *function, RightHandSi
                 remainder = !e.adaptive;
                 trial_step(&e, &m0, x0, ta, tb - ta, x);
                 if (e.short_of) { /* the rest of the step stopped short: the call ends at the event */
-                    memcpy(x, x0, sizeof x0);
-                    *memory = m0;
-                    count_work(memory, f);
-                    return stopped_short(inst, function, f, solver, t, ta);
+                    return stopped_at(inst, function, f, solver, t, ta, x, x0, memory, &m0);
                 }
                 indicators_at(&e, tb, x, z1);
                 for (k = 0; k < N_CONSTRAINTS; k++) any |= crossed(&e, k, z0[k], z1[k]);
