@@ -45,6 +45,7 @@ sys.path.insert(0, str(ROOT))
 from scipy.integrate import quad, solve_ivp  # noqa: E402
 from scipy.special import ellipk  # noqa: E402
 
+from harness.fmi.events import event_times  # noqa: E402
 from harness.fmi.fmu_instance import FmuInstance  # noqa: E402
 from harness.fmi.fmus import build_fmus, locate_fmu  # noqa: E402
 from harness.fmi.methods import SOLVERS  # noqa: E402
@@ -129,31 +130,9 @@ def fmu_cradle_errors(fmu: FmuInstance, settings: dict, expected: np.ndarray) ->
 
 def fmu_event_times(path: Path, settings: dict) -> list[float]:
     """The times at which FMI 3.0 Co-Simulation returned early (each event it handled) within STRING_RUN."""
-    from fmpy import extract, read_model_description
-    from fmpy.fmi3 import FMU3Slave
-    import shutil
-    description = read_model_description(path)
-    references = {v.name: v.valueReference for v in description.modelVariables}
-    unzipped = extract(path)
-    try:
-        instance = FMU3Slave(guid=description.guid, unzipDirectory=unzipped, instanceName="string",
-                             modelIdentifier=description.coSimulation.modelIdentifier)
-        instance.instantiate(earlyReturnAllowed=True)
-        instance.setFloat64([references["h"], references["tol"]], [settings["h"], settings["tol"]])
-        instance.setInt64([references["solver"]], [settings["solver"]])
-        instance.enterInitializationMode()
-        instance.exitInitializationMode()
-        t, times = 0.0, []
-        while t < STRING_RUN - 1e-12:
-            _, _, early, reached = instance.doStep(currentCommunicationPoint=t, communicationStepSize=STRING_RUN - t)
-            if early:
-                times.append(reached)
-            t = reached
-        instance.terminate()
-        instance.freeInstance()
-        return times
-    finally:
-        shutil.rmtree(unzipped, ignore_errors=True)
+    with FmuInstance(path, name="string", early_return=True) as instance:
+        instance.initialize(**settings)
+        return event_times(instance, np.array([0.0, STRING_RUN])).times
 
 
 def fmu_run(fmu: FmuInstance, settings: dict, duration: float):

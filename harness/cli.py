@@ -265,9 +265,13 @@ def command_chart(args: argparse.Namespace) -> int:
         write_csv(points, out / "work-precision.csv")
         written = [out / "work-precision.csv", *work_precision_chart(points, out)]
         for name in objects:
-            front = pareto_front([p for p in points if p.object == name])
+            mine = [p for p in points if p.object == name]
             print(f"{name}: Pareto front (evaluations -> error): "
-                  + ", ".join(f"{p.method} {p.evaluations} -> {p.error:.1e}" for p in front))
+                  + ", ".join(f"{p.method} {p.evaluations} -> {p.error:.1e}" for p in pareto_front(mine)))
+            if any(math.isfinite(p.event_error) for p in mine):
+                print(f"{name}: Pareto front (evaluations -> event time error): "
+                      + ", ".join(f"{p.method} {p.evaluations} -> {p.event_error:.1e} s"
+                                  for p in pareto_front(mine, measure="event_error")))
     elif args.kind == "stability":
         from harness.studies.charts import stability_charts
         from harness.fmi.fmus import build_dir

@@ -35,9 +35,12 @@ def test_the_files_and_the_columns(sweep):
     out, points = sweep
     with open(out / "work-precision.csv") as handle:
         assert next(csv.reader(handle)) == ["object", "method", "h", "tol", "error", "rhs_evals", "seconds",
-                                         "reference_error", "jacobian_columns", "order"]
+                                         "reference_error", "jacobian_columns", "order", "event_error",
+                                         "reference_event_error"]
     for suffix in ("png", "svg"):
         assert (out / f"work-precision.{suffix}").stat().st_size > 10_000
+    # no events, no event charts
+    assert all(math.isnan(p.event_error) for p in points) and not (out / "work-precision-events.png").exists()
     for name in PENDULUMS:
         for method in [*FIXED_STEP, *ADAPTIVE, "taylor", "scipy-RK45", "scipy-DOP853", "scipy-LSODA", "fmpy-CVode"]:
             mine = [p for p in points if p.object == name and p.method == method]
@@ -67,20 +70,21 @@ def test_slopes_are_the_orders(sweep, name, method):
 
 
 def assert_slope_is_the_order(points: list[Point], name: str, method: str, asymptotic, least: int,
-                              tolerance: float) -> None:
+                              tolerance: float, measure: str = "error") -> None:
     """Through the three finest settings that `asymptotic` accepts (at least `least` of them, or two
     where the next finer setting is already below the range: a high order reaches rounding within a
     halving or two): the fitted slope of log(error) against log(evaluations) is minus the method's
     order. For the implicit
     methods against log(steps) instead: their evaluations per step fall as the step shrinks (fewer
-    Newton iterations), so that their evaluations are not proportional to the steps."""
+    Newton iterations), so that their evaluations are not proportional to the steps. `measure`: the
+    position error or the events' time error."""
     every = sorted((p for p in points if p.object == name and p.method == method), key=lambda p: p.rhs_evals)
     mine = [p for p in every if asymptotic(p)][-3:]
     at_rounding = bool(mine) and any(p.rhs_evals > mine[-1].rhs_evals and not asymptotic(p)
-                                     and p.error < mine[-1].error for p in every)
-    assert len(mine) >= (min(least, 2) if at_rounding else least), [p.error for p in every]
+                                     and getattr(p, measure) < getattr(mine[-1], measure) for p in every)
+    assert len(mine) >= (min(least, 2) if at_rounding else least), [getattr(p, measure) for p in every]
     cost = (lambda p: 1 / p.h) if method in IMPLICIT else (lambda p: p.rhs_evals)  # noqa: E731
-    measured = -slope([cost(p) for p in mine], [p.error for p in mine])
+    measured = -slope([cost(p) for p in mine], [getattr(p, measure) for p in mine])
     assert abs(measured - ORDER[method]) < tolerance, measured
 
 

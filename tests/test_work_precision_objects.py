@@ -11,6 +11,7 @@ import pytest
 from scipy.integrate import solve_ivp
 
 from harness.cli import main
+from harness.fmi.events import matched_error
 from harness.objects.derivation import derive
 from harness.objects.motion import ObjectMotion
 from harness.objects.numeric_route import NumericLagrangian
@@ -129,6 +130,7 @@ def impact_sweep(fmu_paths, tmp_path_factory):
     out = tmp_path_factory.mktemp("work-precision-impacts")
     assert main(["chart", "work-precision", "--out", str(out), "--repeats", "1", "--quick",
                  "--objects", "WallPendulum"]) == 0
+    assert all((out / f"{stem}.png").is_file() for stem in ("work-precision-events", "work-precision-events-time"))
     return read_csv(out / "work-precision.csv")
 
 
@@ -150,3 +152,34 @@ def test_work_precision_through_impacts(impact_sweep):
         mine = sorted((p for p in points if p.method == method), key=lambda p: p.tol)
         errors = [p.error for p in mine]
         assert errors[0] * 30 < errors[-1], (method, errors)
+
+
+def test_event_times_through_impacts(impact_sweep, fmu_paths):
+    """The chart's second measure on an object with events: when each impact happens. The reference's impact
+    times (the FMU's nystrom5 at its finest step, from FMI 3.0's early returns) agree with the pendulum
+    equation integrated here by SciPy with the wall as its event; every method's event times are measured
+    (the same eight impacts), and their error falls at the method's order, as the position error does."""
+    from test_constraints import _wall_reference
+    reference = reference_for(str(fmu_paths["WallPendulum"]))
+    _, impacts = _wall_reference(STOP)
+    assert len(reference.event_times) == len(impacts) == 8
+    assert np.max(np.abs(np.subtract(reference.event_times, impacts))) < 1e-11
+    assert reference.estimated_event_error < 1e-13
+    points = impact_sweep
+    assert all(math.isfinite(p.event_error) and p.reference_event_error < 1e-13 for p in points), \
+        [(p.method, p.event_error) for p in points if not math.isfinite(p.event_error)]
+    for method in ("heun", "rk3", "rk4", "nystrom5", "ab4"):
+        assert_slope_is_the_order(points, "WallPendulum", method, lambda p: 1e-13 <= p.event_error <= 1e-3, 2, 0.35,
+                                  "event_error")
+    cvode = sorted((p for p in points if p.method == "fmpy-CVode"), key=lambda p: p.tol)
+    assert cvode[0].event_error * 100 < cvode[-1].event_error
+
+
+def test_event_times_are_matched_in_order():
+    """An event just beyond the end in one run but not the other is left out; a missed event is not."""
+    reference = [1.0, 2.0, 3.0]
+    assert matched_error([1.0, 2.0 + 1e-9, 3.0], reference) == pytest.approx(1e-9)
+    assert matched_error([1.0, 2.0 + 1e-9], reference) == pytest.approx(1e-9)
+    assert matched_error([1.0], reference) == math.inf
+    assert matched_error([], reference) == math.inf
+    assert math.isnan(matched_error([], []))

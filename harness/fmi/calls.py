@@ -125,6 +125,7 @@ class Calls:
         self.float_type_name = "Real" if version == "2.0" else "Float64"
         self.float_type = TYPES[version][self.float_type_name]
         self.last_time = ctypes.c_double(0.0)  # fmi3DoStep's lastSuccessfulTime
+        self.step_flags = None  # fmi3DoStep's eventHandlingNeeded, terminateSimulation, earlyReturn
         self._roles: dict[str, object] = {}
         self._values: dict[str, object] = {}
         self.get_real = self.values(self.float_type, False)
@@ -136,7 +137,8 @@ class Calls:
             flags = (ctypes.c_bool * 3)()
             event, terminate, early = (ctypes.addressof(flags) + k * ctypes.sizeof(ctypes.c_bool) for k in range(3))
             last = ctypes.addressof(self.last_time)
-            self._keep = (step, flags)
+            self._keep = step
+            self.step_flags = flags
             self.do_step = lambda c, t, h, no_prior: step(c, t, h, bool(no_prior), event, terminate, early, last)
 
     def __call__(self, role: str, *args) -> int:

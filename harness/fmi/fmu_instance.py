@@ -164,10 +164,13 @@ class FmuInstance:
     """An instantiated FMU of either version (Co-Simulation by default, Model Exchange with kind="ME")."""
 
     def __init__(self, fmu: str | Path, kind: str = "CS", name: str = "instance", logging_on: bool = False,
-                 unzipdir: str | None = None, description=None, template: "FmuInstance | None" = None):
+                 unzipdir: str | None = None, description=None, template: "FmuInstance | None" = None,
+                 early_return: bool = False):
         """`unzipdir`, `description` and `template` (an instance of the same FMU and kind, whose loaded
         library and function table this one shares): what `SharedFmus` hands each further instance of
-        an FMU; by default the instance makes its own."""
+        an FMU; by default the instance makes its own. `early_return`: an FMI 3.0 Co-Simulation instance
+        may end a step at an event (`returned_early`)."""
+        self.early_return = early_return
         self._template = template
         self.path = Path(fmu)
         self.fmu = None
@@ -215,7 +218,8 @@ class FmuInstance:
         self.loaded = fmu  # what a further instance of this FMU may share (`template`)
         try:
             if fmi3:
-                fmu.instantiate(loggingOn=logging_on, logMessage=self.log.fmi3_log_message)
+                options = {"earlyReturnAllowed": True} if self.early_return and kind == "CS" else {}
+                fmu.instantiate(loggingOn=logging_on, logMessage=self.log.fmi3_log_message, **options)
             else:
                 fmu.instantiate(callbacks=self.log.callbacks, loggingOn=logging_on)
         except Exception:
@@ -380,6 +384,11 @@ class FmuInstance:
 
     def do_step(self, t: float, H: float) -> int:
         return self.raw.do_step(self.raw.component, t, H, 1)
+
+    def returned_early(self) -> bool:
+        """Whether the last fmi3DoStep ended early, at an event (never, for FMI 2.0)."""
+        flags = self.raw.step_flags
+        return bool(flags is not None and flags[2])
 
     def work(self) -> int:
         """The integration's cost so far in right-hand-side evaluations: n_rhs plus, for the implicit

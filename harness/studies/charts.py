@@ -182,61 +182,80 @@ def _setting(p: Point) -> str:
 
 COSTS = {"evaluations": ("cost [evaluations]", "work-precision", "evaluations (right-hand sides + Jacobian columns)"),
          "seconds": ("run time [s]", "work-precision-time", "run time (median of repeats)")}
+# what the error axis measures: the Point's field, its reference's estimate, the axis, the charts' stem
+# suffix, the unit, and the title's words
+MEASURES = {"error": ("reference_error", "error [m]", "", "m", "the traced point's largest position error"),
+            "event_error": ("reference_event_error", "event time error [s]", "-events", "s",
+                            "the largest error of an event's time")}
 
 
-def work_precision_figure(points: list[Point], cost: str):
+def chart_stem(cost: str, measure: str) -> str:
+    """work-precision, work-precision-time, work-precision-events, work-precision-events-time."""
+    return "work-precision" + MEASURES[measure][2] + ("-time" if cost == "seconds" else "")
+
+
+def work_precision_figure(points: list[Point], cost: str, measure: str = "error"):
     """Error against one cost, a panel per object and family; the object's Pareto front (all methods)
-    as a black staircase with its points circled in each of its panels."""
-    xlabel, stem, what = COSTS[cost]
+    as a black staircase with its points circled in each of its panels. `measure`: the position error or,
+    for objects with events, the error of the events' times."""
+    xlabel, _, what = COSTS[cost]
+    floor_field, ylabel, _, unit, title = MEASURES[measure]
+    stem = chart_stem(cost, measure)
+    error = (lambda p: getattr(p, measure))  # noqa: E731
+    points = [p for p in points if not math.isnan(error(p))]
     objects = list(dict.fromkeys(p.object for p in points))
     groups = method_families(p.method for p in points)
     peers = [m for m in dict.fromkeys(p.method for p in points) if m not in METHOD]
-    figure, panels, blocks = family_grid(objects, groups, xlabel, "error [m]")
+    figure, panels, blocks = family_grid(objects, groups, xlabel, ylabel)
     tips = Tooltips(stem)
     for name in objects:
-        mine = [p for p in points if p.object == name and math.isfinite(p.error) and p.error > 0]
+        mine = [p for p in points if p.object == name and math.isfinite(error(p)) and error(p) > 0]
         series = {m: sorted((p for p in mine if p.method == m), key=lambda p: getattr(p, cost))
                   for m in dict.fromkeys(p.method for p in mine)}
-        front = pareto_front(mine, cost)
-        floor = max((p.reference_error for p in mine), default=math.nan)
+        front = pareto_front(mine, cost, measure)
+        floor = max((getattr(p, floor_field) for p in mine), default=math.nan)
         for key, _, methods in groups:
             ax = panels[(name, key)]
             for method, line in series.items():
                 if method not in methods:
-                    ax.plot([getattr(p, cost) for p in line], [p.error for p in line], color=CONTEXT,
+                    ax.plot([getattr(p, cost) for p in line], [error(p) for p in line], color=CONTEXT,
                             linewidth=0.8, zorder=1)
             if floor > 0:  # errors below the reference's own are not resolved
                 ax.axhspan(floor * 1e-3, floor, color=BAND, zorder=0)
-            ax.step([getattr(p, cost) for p in front], [p.error for p in front], where="post", color="black",
+            ax.step([getattr(p, cost) for p in front], [error(p) for p in front], where="post", color="black",
                     linewidth=1.1, zorder=3)
-            ax.scatter([getattr(p, cost) for p in front], [p.error for p in front], s=40, facecolors="none",
+            ax.scatter([getattr(p, cost) for p in front], [error(p) for p in front], s=40, facecolors="none",
                        edgecolors="black", linewidths=1.0, zorder=4, gid=f"{stem}-front-{name}-{key}")
             for method in methods:
                 line = series.get(method, [])
                 style = method_style(method, peers)
-                ax.plot([getattr(p, cost) for p in line], [p.error for p in line], color=style["color"],
+                ax.plot([getattr(p, cost) for p in line], [error(p) for p in line], color=style["color"],
                         linewidth=1.4, linestyle="--" if key == PEERS[0] else "-", zorder=5)
                 for p in line:
                     on_front = " (on the Pareto front)" if p in front else ""
-                    tips.point(ax, getattr(p, cost), p.error,
-                               f"{name}: {method}, {_setting(p)}: error {p.error:.2g} m, {p.evaluations} "
+                    tips.point(ax, getattr(p, cost), error(p),
+                               f"{name}: {method}, {_setting(p)}: error {error(p):.2g} {unit}, {p.evaluations} "
                                f"evaluations, {p.seconds * 1e3:.3g} ms{on_front}", markersize=4, zorder=6, **style)
     family_legends(panels, blocks, groups, peers)
     figure.legend([Line2D([], [], color="black", marker="o", markerfacecolor="none", linewidth=1.1),
                    Line2D([], [], color=CONTEXT, linewidth=0.8), Patch(color=BAND)],
                   ["Pareto front of all methods (circled points)", "the other families' methods",
                    "below the reference's own error"], loc="outside lower center", ncol=3, fontsize=8, frameon=False)
-    figure.suptitle(f"Work-precision: the traced point's largest position error over {STOP:g} s (outputs every "
-                    f"{STEP:g} s)\nagainst {what}", fontsize=10)
+    figure.suptitle(f"Work-precision: {title} over {STOP:g} s (outputs every {STEP:g} s)\nagainst {what}",
+                    fontsize=10)
     return figure, tips
 
 
 def work_precision_chart(points: list[Point], out: Path) -> list[Path]:
-    """work-precision (error against evaluations) and work-precision-time (against seconds)."""
+    """work-precision (error against evaluations) and work-precision-time (against seconds); where objects
+    have events, work-precision-events and work-precision-events-time (their times' error) as well."""
     paths = []
-    for cost in COSTS:
-        figure, tips = work_precision_figure(points, cost)
-        paths += save(figure, out, COSTS[cost][1], tips)
+    for measure in MEASURES:
+        if measure != "error" and all(math.isnan(getattr(p, measure)) for p in points):
+            continue
+        for cost in COSTS:
+            figure, tips = work_precision_figure(points, cost, measure)
+            paths += save(figure, out, chart_stem(cost, measure), tips)
     return paths
 
 

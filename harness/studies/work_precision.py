@@ -28,6 +28,7 @@ from pathlib import Path
 import numpy as np
 
 from harness.cosim.structure import Component
+from harness.fmi.events import event_times, fmi3_counterpart, matched_error
 from harness.fmi.fmu_instance import FmuInstance, accepted_methods, float_start_values, read_description
 from harness.fmi.methods import ADAPTIVE, FIXED_STEP, ORDER
 from harness.fmi.results import rows_on_grid
@@ -38,7 +39,7 @@ from harness.objects.proof import object_file_in
 from harness.objects.thesis.equations import OUTER_MASS, Pendulum
 from harness.objects.thesis.reference import tight_reference
 from harness.studies.records import columns_of, read_records, write_records
-from harness.studies.references import ObjectRunner, fmu_reference, traced_columns
+from harness.studies.references import REFERENCE_METHOD, REFERENCE_ORDER, ObjectRunner, fmu_reference, traced_columns
 from harness.studies.sweep import run_sweep
 
 STOP, STEP = 10.0, 0.01
@@ -70,6 +71,10 @@ class Point:
     reference_error: float  # metres: the reference's estimated error (errors below it are not resolved)
     jacobian_columns: int = 0  # the implicit methods' Jacobians, in directional derivatives
     order: int = 0  # taylor's taylor_order; 0 for the other methods
+    # seconds, objects with events only (NaN otherwise): the largest error of an event's time, and the
+    # reference's estimate of its own
+    event_error: float = math.nan
+    reference_event_error: float = math.nan
 
     @property
     def evaluations(self) -> int:
@@ -131,6 +136,8 @@ REFERENCE_TARGET = 1e-12  # metres: the estimate the FMU reference of any other 
 class TracedReference:
     positions: np.ndarray  # (outputs, 2 or 3): the traced point at 0, STEP, ..., STOP
     estimated_error: float  # metres
+    event_times: list[float] | None = None  # an object with events: when they happen
+    estimated_event_error: float = math.nan  # seconds
 
 
 def reference_for(fmu: str) -> TracedReference:
@@ -140,8 +147,27 @@ def reference_for(fmu: str) -> TracedReference:
         reference = tight_reference(Pendulum.from_fmu(fmu), STOP, STEP, REFERENCE_SUBSTEPS[name])
         return TracedReference(reference.positions, reference.estimated_error)
     with ObjectRunner(Component(name, Path(fmu)), STOP, STEP, [traced_columns(fmu)]) as runner:
-        positions, estimate, _ = fmu_reference(runner, runner.default_h / 8, REFERENCE_TARGET)
-    return TracedReference(positions[:, 0, :], estimate)
+        positions, estimate, h = fmu_reference(runner, runner.default_h / 8, REFERENCE_TARGET)
+        settings = runner.settings(REFERENCE_METHOD, h)
+        coarser = runner.settings(REFERENCE_METHOD, 2 * h)
+    reference = TracedReference(positions[:, 0, :], estimate)
+    fine, coarse = fmu_event_times(fmu, settings), fmu_event_times(fmu, coarser)
+    if fine is not None and coarse is not None:
+        reference.event_times = fine
+        reference.estimated_event_error = matched_error(coarse, fine) / (2 ** REFERENCE_ORDER - 1)
+    return reference
+
+
+def fmu_event_times(fmu: str, start: dict) -> list[float] | None:
+    """When the events of an FMU's run on the chart's grid happen, from its FMI 3.0 build (early return):
+    None for an object without events or without that build, [] when the run stops early."""
+    counterpart = fmi3_counterpart(fmu)
+    if not read_description(Path(fmu)).numberOfEventIndicators or counterpart is None:
+        return None
+    with FmuInstance(counterpart, name="events", early_return=True) as instance:
+        instance.initialize(0.0, **start)
+        events = event_times(instance, communication_grid(0.0, STOP, STEP))
+    return events.times if events.completed else []
 
 
 @lru_cache(maxsize=None)  # per worker process: the derivation of a large object takes about a second
@@ -169,12 +195,17 @@ def _median_seconds(run, repeats: int):
     return statistics.median(times), result
 
 
+def _event_error(times: list[float] | None, reference: TracedReference) -> float:
+    return math.nan if times is None or reference.event_times is None else matched_error(times, reference.event_times)
+
+
 def _fmu_point(task: Task, reference: TracedReference) -> Point:
     grid = communication_grid(0.0, STOP, STEP)
     start = {"solver": task.method}
     start.update({"tol": task.tol} if math.isnan(task.h) else {"h": task.h})
     if task.order:
         start.update(tol=task.tol, taylor_order=task.order)
+    times = fmu_event_times(task.fmu, start) if reference.event_times is not None else None
     columns = traced_columns(task.fmu)
     with FmuInstance(task.fmu, name=task.object) as instance:
         recorder = Recorder(instance, grid, list(columns))
@@ -188,7 +219,7 @@ def _fmu_point(task: Task, reference: TracedReference) -> Point:
     error = math.inf if result.discarded_at is not None else \
         position_error(result.values[:, 1:1 + len(columns)], reference)
     return Point(task.object, task.method, task.h, task.tol, error, evaluations, seconds, reference.estimated_error,
-                 work - evaluations, task.order)
+                 work - evaluations, task.order, _event_error(times, reference), reference.estimated_event_error)
 
 
 def _scipy_point(task: Task, reference: TracedReference) -> Point:
@@ -212,20 +243,25 @@ def _cvode_point(task: Task, reference: TracedReference) -> Point:
     from harness.archives import extract_fmu
     description = read_model_description(task.fmu)  # read once: simulate_fmu would parse it every run
     columns = traced_columns(task.fmu)
+    description_names = {v.name for v in description.modelVariables}
     unzipped = str(extract_fmu(Path(task.fmu)))  # once per point, not per repeat
 
     def run():
         return simulate_fmu(unzipped, model_description=description, fmi_type="ModelExchange", solver="CVode",
                             relative_tolerance=task.tol, output_interval=STEP, stop_time=STOP,
-                            output=[*columns, "n_rhs"])
+                            output=[*columns, "n_rhs", *(["n_events"] if "n_events" in description_names else [])])
     try:
         seconds, result = _median_seconds(run, task.repeats)
     finally:
         shutil.rmtree(unzipped, ignore_errors=True)
+    # fmpy records the rows before and after each event: an event is where n_events changes
+    changed = np.flatnonzero(np.diff(result["n_events"])) + 1 if "n_events" in result.dtype.names else []
+    times = sorted({float(result["time"][k]) for k in changed})
     result = result[rows_on_grid(result["time"], communication_grid(0.0, STOP, STEP))]  # not the events' rows
     positions = np.column_stack([result[n] for n in columns])
     return Point(task.object, task.method, task.h, task.tol, position_error(positions, reference),
-                 int(result["n_rhs"][-1]), seconds, reference.estimated_error)
+                 int(result["n_rhs"][-1]), seconds, reference.estimated_error, event_error=_event_error(times, reference),
+                 reference_event_error=reference.estimated_event_error)
 
 
 def compute(job: tuple[Task, TracedReference]) -> Point:
@@ -245,14 +281,16 @@ def work_precision(tasks: list[Task], scheduler: str | None = None, workers: int
     return run_sweep(compute, [(task, references[task.fmu]) for task in tasks], scheduler, workers)
 
 
-def pareto_front(points: list[Point], cost: str = "evaluations") -> list[Point]:
-    """The points no other point beats in both cost and error, cheapest first."""
-    finite = sorted((p for p in points if math.isfinite(p.error)), key=lambda p: (getattr(p, cost), p.error))
+def pareto_front(points: list[Point], cost: str = "evaluations", measure: str = "error") -> list[Point]:
+    """The points no other point beats in both cost and error (`measure`: error or event_error), cheapest
+    first."""
+    finite = sorted((p for p in points if math.isfinite(getattr(p, measure))),
+                    key=lambda p: (getattr(p, cost), getattr(p, measure)))
     front, best = [], math.inf
     for p in finite:
-        if p.error < best:
+        if getattr(p, measure) < best:
             front.append(p)
-            best = p.error
+            best = getattr(p, measure)
     return front
 
 
