@@ -16,6 +16,8 @@ from fmpy import simulate_fmu
 from scipy.integrate import quad, solve_ivp
 from scipy.special import ellipk
 
+from harness.fmi.events import event_times, fmi3_counterpart
+from harness.fmi.fmu_instance import FmuInstance
 from harness.fmi.fmus import PROJECT_ROOT
 from harness.fmi.methods import FIXED_STEP, SOLVERS
 from harness.objects.object_file import read_object_file
@@ -169,12 +171,33 @@ def test_the_string_jerks_taut_and_swings_on_as_a_pendulum(string):
 
 
 @pytest.mark.parametrize("solver", ["euler", "midpoint", "heun", "ab2", "abm2", "implicit_midpoint", "trapezoid"])
-def test_low_order_methods_leave_the_slack_string_without_hanging(string, solver):
+@pytest.mark.parametrize("h", [2e-3, 8e-3])  # 8 ms: the FMU's default step
+def test_low_order_methods_leave_the_slack_string_without_hanging(string, solver, h):
     """A first- or second-order step from the slack point ends outside the circle (the exact flight is inside
     by only (v g) t^3): that is the method's error, not a new event, and the call goes on."""
-    run = string(solver, 2e-3, 2.0)
+    run = string(solver, h, 2.0)
     assert run["n_events"][-1] >= 2
     assert np.all(np.isfinite(run["x"]))
+
+
+@pytest.mark.parametrize("h", [8e-3, 4e-3])
+def test_euler_leaves_the_slack_string_on_any_grid(fmu_paths, h):
+    """Euler's straight step off the circle dips outside it by h^2 v^2 / 2L for several steps after the slack
+    point, while the flight's opening rate is still below that dip: each such dip is the method's error, on a
+    grid of 0.01 s (FMI 2.0) as on the early returns' grid of FMI 3.0 (once stopped with "an event recurs at
+    once"). The string goes slack once and jerks taut once, near the exact times."""
+    t_slack, _, _, flight = _flight()
+    with FmuInstance(fmu_paths["StringPendulum"]) as fmi2:
+        fmi2.initialize(0.0, **_settings("euler", h))
+        statuses = [fmi2.do_step(0.01 * k, 0.01) for k in range(150)]
+        assert statuses == [0] * 150, fmi2.last_message()
+        assert fmi2.get("n_events") == [2]
+    with FmuInstance(fmi3_counterpart(fmu_paths["StringPendulum"]), early_return=True) as fmi3:
+        fmi3.initialize(0.0, **_settings("euler", h))
+        events = event_times(fmi3, np.array([0.0, 1.5]))
+    assert events.completed and len(events.times) == 2
+    # Euler's error in the event times: first order, about 8 h here
+    assert abs(events.times[0] - t_slack) < 10 * h and abs(events.times[1] - (t_slack + flight)) < 10 * h
 
 
 # ---------------------------------------------------------------- the Hertz cradle
