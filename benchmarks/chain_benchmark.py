@@ -58,7 +58,8 @@ def timed_run_in_a_process(scene: Path, steps: int) -> float:
     return float(result.stdout.split()[-1])
 
 
-def measure(n: int, steps: int, error_seconds: float, folder: Path) -> dict:
+def measure(n: int, steps: int, error_seconds: float, folder: Path, component_steps: int = COMPONENT_STEPS,
+            repeats: int = REPEATS) -> dict:
     scene = folder / f"chain_{n}.json"
     scene.write_text(json.dumps(pendulum_chain(n)))
     system = load_system(scene)
@@ -70,9 +71,9 @@ def measure(n: int, steps: int, error_seconds: float, folder: Path) -> dict:
         master._initialize()
         startup = time.perf_counter() - start
         memory = resident_bytes() - before
-    steps = max(steps, round(COMPONENT_STEPS / instances))  # long enough to time for small N too
+    steps = max(steps, round(component_steps / instances))  # long enough to time for small N too
     seconds: dict[int, list[float]] = {steps: [], 2 * steps: []}
-    for _ in range(REPEATS):
+    for _ in range(repeats):
         for n_steps in seconds:
             seconds[n_steps].append(timed_run_in_a_process(scene, n_steps))
     # the fastest of each (the least disturbed by other work on a shared machine), then their difference
@@ -93,6 +94,9 @@ def main() -> int:
     parser.add_argument("--sizes", type=int, nargs="+", default=[10, 100, 1000])
     parser.add_argument("--steps", type=int, default=1000, help="macro steps per cost measurement")
     parser.add_argument("--error-seconds", type=float, default=2.0, help="simulated time of the error run")
+    parser.add_argument("--component-steps", type=int, default=COMPONENT_STEPS,
+                        help="per timed run at least: macro steps times instances")
+    parser.add_argument("--repeats", type=int, default=REPEATS, help="timed runs of each length, in processes of their own")
     parser.add_argument("--time-run", nargs=2, metavar=("SCENE", "STEPS"), help=argparse.SUPPRESS)
     args = parser.parse_args()
     if args.time_run:
@@ -100,11 +104,12 @@ def main() -> int:
         return 0
     build_fmus()
     with tempfile.TemporaryDirectory(prefix="chain_benchmark_") as folder:
-        rows = [measure(n, args.steps, args.error_seconds, Path(folder)) for n in args.sizes]
+        rows = [measure(n, args.steps, args.error_seconds, Path(folder), args.component_steps, args.repeats)
+                for n in args.sizes]
     base = rows[0]["cost"]
     print(f"Chain of N pendulums and N - 1 springs, Gauss-Seidel, linear, H = {STEP} s; costs: the fastest of "
-          f"{REPEATS} runs of 2n macro steps less the fastest of n (n at least {args.steps} and "
-          f"{COMPONENT_STEPS:.0e} / instances), each run in a process of its own")
+          f"{args.repeats} runs of 2n macro steps less the fastest of n (n at least {args.steps} and "
+          f"{args.component_steps:.0e} / instances), each run in a process of its own")
     print(f"{'N':>6s} {'instances':>9s} {'start-up/instance':>18s} {'memory/instance':>16s} "
           f"{'us/(component step)':>20s} {'ratio to N=' + str(rows[0]['n']):>14s} "
           f"{'error [m] over ' + format(args.error_seconds, 'g') + ' s':>22s} {'reference [s]':>14s}")

@@ -254,14 +254,25 @@ def command_chart(args: argparse.Namespace) -> int:
     unknown = sorted(set(objects) - set(known))
     if unknown:
         raise HarnessError(f"--objects: {', '.join(unknown)} is not one of {', '.join(known)}")
-    from harness.output import output_folder
-    out = output_folder(args.out, "--out")
+    if args.methods:
+        from harness.studies.work_precision import chart_methods
+        if args.kind != "work-precision":
+            raise HarnessError(f"--methods: chart {args.kind} takes every method (only work-precision takes some)")
+        unknown = sorted(set(args.methods) - set(chart_methods()))
+        if unknown:
+            raise HarnessError(f"--methods: {', '.join(unknown)} is not one of {', '.join(chart_methods())}")
+    from harness.output import output_folder, usable_folder
+    usable_folder(args.out, "--out")
     build_fmus()
     if args.kind == "work-precision":
         from harness.studies.charts import work_precision_chart
         from harness.studies.work_precision import pareto_front, settings, work_precision, write_csv
-        points = work_precision(settings(objects, repeats=args.repeats, quick=args.quick), args.scheduler,
-                                args.workers)
+        tasks = settings(objects, repeats=args.repeats, quick=args.quick, methods=args.methods)
+        if not tasks:
+            raise HarnessError(f"--methods: none of {', '.join(args.methods)} runs on {', '.join(objects)}")
+    out = output_folder(args.out, "--out")
+    if args.kind == "work-precision":
+        points = work_precision(tasks, args.scheduler, args.workers)
         write_csv(points, out / "work-precision.csv")
         written = [out / "work-precision.csv", *work_precision_chart(points, out)]
         for name in objects:
@@ -437,6 +448,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--quick", action="store_true", help="work-precision and stability: every other step, "
                    "tolerance and damping ratio; long-run: 1,000 periods instead of 10,000 (a chart in seconds)")
     p.add_argument("--repeats", type=count(1000), default=3, help="timed repeats per point; the median is kept (default 3)")
+    p.add_argument("--methods", nargs="+", metavar="NAME", help="work-precision: only these methods and peers "
+                   "(the FMUs' methods, scipy-RK45, scipy-DOP853, scipy-LSODA, fmpy-CVode; default: all)")
     p.add_argument("--scene", "--system", dest="system",
                    help="coupling: a scene of objects joined by Springs (default scenes/coupled_pendulums.json)")
     p.add_argument("--stop", type=positive_number, help="coupling: simulated time [s] (default: the system's)")

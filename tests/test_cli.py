@@ -1,6 +1,8 @@
 """The command line: user errors give one line and exit code 2; results so far are kept."""
 from __future__ import annotations
 
+import csv
+
 import re
 import subprocess
 import sys
@@ -122,17 +124,29 @@ def test_a_long_run_reports_its_progress(capsys, monkeypatch):
     assert lines == ["  t = 12.5 of 50 s (25%, about 9 s left)", "  t = 25 of 50 s (50%, about 10 s left)"]
 
 
-def test_charts_take_each_object_once(fmu_paths, tmp_path):
-    """An object named twice is charted once: each (object, method, damping, release) has one row,
-    as it would have two if the object were swept twice."""
-    result = harness("chart", "stability", "--quick", "--workers", "2", "--objects", "SimplePendulum",
-                     "SimplePendulum", "--out", str(tmp_path))
+def test_charts_take_each_object_once_and_the_methods_asked_for(fmu_paths, tmp_path):
+    """An object named twice is charted once: each (object, method, step, tolerance) has one row, as it would
+    have two if the object were swept twice; --methods limits the points to those methods and peers."""
+    result = harness("chart", "work-precision", "--quick", "--repeats", "1", "--methods", "rk4", "scipy-DOP853",
+                     "--objects", "SimplePendulum", "SimplePendulum", "--out", str(tmp_path))
     assert result.returncode == 0, result.stderr
-    rows = (tmp_path / "stability.csv").read_text().splitlines()[1:]
-    assert len(rows) > 10 and len(set(rows)) == len(rows)
-    assert {row.split(",")[0] for row in rows} == {"SimplePendulum"}
-    keys = [tuple(row.split(",")[i] for i in (0, 1, 2, 5)) for row in rows]  # object, method, damping, release
-    assert len(set(keys)) == len(keys)
+    rows = list(csv.DictReader(open(tmp_path / "work-precision.csv")))
+    assert {row["object"] for row in rows} == {"SimplePendulum"}
+    assert {row["method"] for row in rows} == {"rk4", "scipy-DOP853"}
+    keys = [(row["method"], row["h"], row["tol"]) for row in rows]
+    assert len(rows) == 6 and len(set(keys)) == len(keys)  # quick: 4 steps of rk4, 2 tolerances of DOP853
+
+
+@pytest.mark.parametrize("arguments, message", [
+    (["work-precision", "--methods", "rk5"], "--methods: rk5 is not one of euler, midpoint"),
+    (["stability", "--methods", "rk4"], "--methods: chart stability takes every method (only work-precision"),
+    (["work-precision", "--methods", "taylor", "--objects", "NewtonsCradle"],
+     "--methods: none of taylor runs on NewtonsCradle")])
+def test_methods_a_chart_cannot_take_are_refused_before_anything_is_written(fmu_paths, tmp_path, arguments, message):
+    out = tmp_path / "charts"
+    result = harness("chart", *arguments, "--out", str(out))
+    assert result.returncode == 2 and result.stderr.count("\n") == 1 and message in result.stderr, result.stderr
+    assert not out.exists()
 
 
 @pytest.mark.parametrize("name", ["CartPendulum", "SphericalPendulum", "DoublePendulum", "Spring"])

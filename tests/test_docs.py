@@ -13,15 +13,20 @@ How a block runs, by its language:
 An HTML comment before a block tells how it runs here: `<!-- doc-test: needs wasm -->` skips it, with
 the reason, where what it needs is missing; `adds ARGS` runs each of its commands with ARGS appended,
 for the benchmarks and full sweeps that take minutes (smaller sizes, the same code). Links to the web
-are not followed (no network here).
+are not followed (no network here). A `harness` command that asks for what a command of another page
+already ran in this test run (the same arguments, as the command line parses them: the same quick sweep
+shown in the README, a how-to and an explanation) runs once; the test workers share what ran.
 """
 from __future__ import annotations
 
 import ctypes.util
+import fcntl
+import hashlib
 import importlib.util
 import json
 import os
 import re
+import shlex
 import shutil
 import subprocess
 import sys
@@ -112,11 +117,52 @@ def _run(block: Block, folder: Path) -> None:
                                     f"{result.stdout[-2000:]}\n{result.stderr[-3000:]}")
 
 
-def run_page(page: Path, folder: Path) -> None:
+def _harness_command(line: str) -> str | None:
+    """What a `harness` command line asks for, as the command line parses it (argument order and repeated
+    options aside); None for any other line."""
+    from harness.cli import build_parser
+    words = shlex.split(line)
+    if not words or words[0] != "harness":
+        return None
+    try:
+        arguments = vars(build_parser().parse_args(words[1:]))
+    except SystemExit:
+        return None
+    return repr(sorted((name, getattr(value, "__name__", value)) for name, value in arguments.items()))
+
+
+def ran_commands(tmp_path_factory) -> Path:
+    """The folder where this test run notes the harness commands that passed: shared by the test workers."""
+    run = os.environ.get("PYTEST_XDIST_TESTRUNUID")
+    base = tmp_path_factory.getbasetemp()
+    folder = base.parent / f"doc-commands-{run}" if run else base / "doc-commands"
+    folder.mkdir(exist_ok=True)
+    return folder
+
+
+def _run_once(block: Block, folder: Path, ran: Path | None) -> None:
+    """`_run`; a block of harness commands one command at a time, each unless the same command passed before
+    in this test run (waiting for one that is running)."""
+    lines = [line for line in block.text.splitlines() if line.strip()]
+    keys = [_harness_command(line) for line in lines] if ran is not None and block.language == "sh" else [None]
+    if None in keys:
+        _run(block, folder)
+        return
+    for line, key in zip(lines, keys):
+        name = hashlib.sha256(key.encode()).hexdigest()[:24]
+        with open(ran / f"{name}.lock", "w") as lock:
+            fcntl.flock(lock, fcntl.LOCK_EX)
+            if not (ran / f"{name}.passed").exists():
+                _run(Block(block.page, block.line, block.language, block.attributes, line + "\n"), folder)
+                (ran / f"{name}.passed").write_text(f"{block.where}: {line}\n")
+
+
+def run_page(page: Path, folder: Path, ran: Path | None = None) -> None:
     """Runs the page's blocks in order in `folder`, as its reader would; skips (after the rest ran) the
-    blocks whose needs this machine lacks, naming them."""
+    blocks whose needs this machine lacks, naming them. `ran`: where passed harness commands are noted
+    (`ran_commands`)."""
     _workspace(folder)
-    ran, skipped = 0, []
+    ran_before, ran, skipped = ran, 0, []
     for block in code_blocks(page):
         settings = dict(part.strip().split(" ", 1) for m in block.markers for part in m.split(";"))
         missing = [NEEDS[n][1] for n in settings.get("needs", "").split() if not NEEDS[n][0]()]
@@ -139,7 +185,7 @@ def run_page(page: Path, folder: Path) -> None:
         if "adds" in settings:
             block.text = "".join(f"{line} {settings['adds']}\n" if line.strip() else "\n"
                                  for line in block.text.splitlines())
-        _run(block, folder)
+        _run_once(block, folder, ran_before)
         ran += 1
     if page == ROOT / "README.md":
         assert ran + len(skipped) >= 8  # the common tasks
@@ -153,8 +199,8 @@ MEASUREMENT_PAGES = sorted((ROOT / "docs" / "explanation").glob("*.md"))
 
 
 @pytest.mark.parametrize("page", [p for p in PAGES if p not in MEASUREMENT_PAGES], ids=_page_id)
-def test_every_block_of_the_page_runs(page, tmp_path):
-    run_page(page, tmp_path)
+def test_every_block_of_the_page_runs(page, tmp_path, tmp_path_factory):
+    run_page(page, tmp_path, ran_commands(tmp_path_factory))
 
 
 def test_the_quick_start_is_what_the_tests_run():

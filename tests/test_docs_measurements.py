@@ -4,9 +4,9 @@ from __future__ import annotations
 
 import pytest
 
-from test_docs import MEASUREMENT_PAGES, ROOT, run_page
+from test_docs import MEASUREMENT_PAGES, ROOT, ran_commands, run_page
 
 
 @pytest.mark.parametrize("page", MEASUREMENT_PAGES, ids=lambda p: str(p.relative_to(ROOT)))
-def test_every_block_of_the_explanation_page_runs(page, tmp_path):
-    run_page(page, tmp_path)
+def test_every_block_of_the_explanation_page_runs(page, tmp_path, tmp_path_factory):
+    run_page(page, tmp_path, ran_commands(tmp_path_factory))

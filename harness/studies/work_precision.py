@@ -30,7 +30,8 @@ import numpy as np
 from harness.cosim.structure import Component
 from harness.fmi.events import event_times, fmi3_counterpart, matched_error
 from harness.fmi.fmu_instance import FmuInstance, accepted_methods, float_start_values, read_description
-from harness.fmi.methods import ADAPTIVE, FIXED_STEP, ORDER
+from harness.errors import HarnessError
+from harness.fmi.methods import ADAPTIVE, FIXED_STEP, METHODS, ORDER
 from harness.fmi.results import rows_on_grid
 from harness.fmi.simulation import Recorder, communication_grid
 from harness.objects.derivation import derive
@@ -101,8 +102,18 @@ def step_scale(fmu: str | Path) -> int:
     return 2 ** max(0, round(math.log2(0.008 / default_h)))
 
 
-def settings(objects=PENDULUMS, repeats: int = 3, fmu_dir: Path | None = None, quick: bool = False) -> list[Task]:
-    """Every point of the chart; quick: every other step and tolerance (a chart in a few seconds)."""
+def chart_methods() -> list[str]:
+    """What a chart may be limited to: the FMUs' methods and the peers."""
+    return [m.name for m in METHODS] + [f"scipy-{m}" for m in SCIPY_METHODS] + ["fmpy-CVode"]
+
+
+def settings(objects=PENDULUMS, repeats: int = 3, fmu_dir: Path | None = None, quick: bool = False,
+             methods: list[str] | None = None) -> list[Task]:
+    """Every point of the chart; quick: every other step and tolerance (a chart in a few seconds); methods:
+    only these (`chart_methods`)."""
+    unknown = sorted(set(methods or ()) - set(chart_methods()))
+    if unknown:
+        raise HarnessError(f"--methods: {', '.join(unknown)} is not one of {', '.join(chart_methods())}")
     from harness.fmi.fmus import build_dir
     folder = Path(fmu_dir) if fmu_dir else build_dir() / "fmus"
     nan = math.nan
@@ -124,7 +135,7 @@ def settings(objects=PENDULUMS, repeats: int = 3, fmu_dir: Path | None = None, q
             tasks += [Task(name, f"scipy-{m}", nan, tol, fmu, repeats) for m in SCIPY_METHODS
                       for tol in thin(PEER_TOLERANCES)]
         tasks += [Task(name, "fmpy-CVode", nan, tol, fmu, repeats) for tol in thin(PEER_TOLERANCES)]
-    return tasks
+    return [task for task in tasks if task.method in methods] if methods else tasks
 
 
 # Reference steps per communication step: the step-halving estimate then stays below 1e-12 m.
