@@ -83,6 +83,7 @@ def methods_page() -> str:
     for item, m in enumerate(methods.METHODS, start=1):
         properties = [p for p, on in (("symmetric", m.symmetric), ("implicit (Newton)", m.implicit),
                                       ("constant mass matrix only", m.needs_constant_mass),
+                                      ("free motion only (no rigid constraint acting)", m.free_motion_only),
                                       ("step from tol", m.adaptive)) if on]
         order = {"taylor": f"`taylor_order` ({methods.TAYLOR_ORDERS[0]} to {methods.TAYLOR_ORDERS[1]}, default "
                            f"{methods.TAYLOR_DEFAULT_ORDER})",

@@ -140,8 +140,8 @@ def test_charts_take_each_object_once_and_the_methods_asked_for(fmu_paths, tmp_p
 @pytest.mark.parametrize("arguments, message", [
     (["work-precision", "--methods", "rk5"], "--methods: rk5 is not one of euler, midpoint"),
     (["stability", "--methods", "rk4"], "--methods: chart stability takes every method (only work-precision"),
-    (["work-precision", "--methods", "taylor", "--objects", "NewtonsCradle"],
-     "--methods: none of taylor runs on NewtonsCradle")])
+    (["work-precision", "--methods", "taylor", "--objects", "HertzCradle"],
+     "--methods: none of taylor runs on HertzCradle")])
 def test_methods_a_chart_cannot_take_are_refused_before_anything_is_written(fmu_paths, tmp_path, arguments, message):
     out = tmp_path / "charts"
     result = harness("chart", *arguments, "--out", str(out))

@@ -13,9 +13,9 @@ How a block runs, by its language:
 An HTML comment before a block tells how it runs here: `<!-- doc-test: needs wasm -->` skips it, with
 the reason, where what it needs is missing; `adds ARGS` runs each of its commands with ARGS appended,
 for the benchmarks and full sweeps that take minutes (smaller sizes, the same code). Links to the web
-are not followed (no network here). A `harness` command that asks for what a command of another page
-already ran in this test run (the same arguments, as the command line parses them: the same quick sweep
-shown in the README, a how-to and an explanation) runs once; the test workers share what ran.
+are not followed (no network here). A `harness chart` command that asks for what a command of another
+page already ran in this test run (the same arguments, as the command line parses them: the same quick
+sweep shown in the README, a how-to and an explanation) runs once; the test workers share what ran.
 """
 from __future__ import annotations
 
@@ -118,11 +118,12 @@ def _run(block: Block, folder: Path) -> None:
 
 
 def _harness_command(line: str) -> str | None:
-    """What a `harness` command line asks for, as the command line parses it (argument order and repeated
-    options aside); None for any other line."""
+    """What a `harness chart` command line asks for, as the command line parses it (argument order and
+    repeated options aside); None for any other line (another command's files may be a later block's
+    input: an SSP archive, a plan)."""
     from harness.cli import build_parser
     words = shlex.split(line)
-    if not words or words[0] != "harness":
+    if words[:2] != ["harness", "chart"]:
         return None
     try:
         arguments = vars(build_parser().parse_args(words[1:]))
@@ -141,8 +142,8 @@ def ran_commands(tmp_path_factory) -> Path:
 
 
 def _run_once(block: Block, folder: Path, ran: Path | None) -> None:
-    """`_run`; a block of harness commands one command at a time, each unless the same command passed before
-    in this test run (waiting for one that is running)."""
+    """`_run`; a block of `harness chart` commands one command at a time, each unless the same command passed
+    before in this test run (waiting for one that is running)."""
     lines = [line for line in block.text.splitlines() if line.strip()]
     keys = [_harness_command(line) for line in lines] if ran is not None and block.language == "sh" else [None]
     if None in keys:

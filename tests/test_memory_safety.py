@@ -19,7 +19,8 @@ SANITIZED_TESTS = ["tests/test_fmi_behaviour.py", "tests/test_robustness.py", "t
                    "tests/test_master.py", "tests/test_concurrency.py", "tests/test_physics.py",
                    "tests/test_fmi3.py", "tests/test_jacobian.py",  # the FMI 3.0 layer and the Jacobian
                    "tests/test_symmetric_methods.py", "tests/test_recorder.py",  # Newton, Verlet, the native loop
-                   "tests/test_taylor.py", "tests/test_extrapolation.py"]  # Taylor arithmetic, extrapolation
+                   "tests/test_taylor.py", "tests/test_extrapolation.py",  # Taylor arithmetic, extrapolation
+                   "tests/test_free_motion_methods.py"]  # events with taylor and stormer_verlet
 
 
 def compiler_file(name: str) -> str:

@@ -22,6 +22,7 @@ import pytest
 from harness.errors import HarnessError
 from harness.fmi.fmu_instance import FmuInstance
 from harness.fmi.fmus import FMU_NAMES, PROJECT_ROOT, build_dir
+from harness.fmi.methods import FREE_MOTION_ONLY
 from harness.objects.registry import compliant_names
 
 NODE = shutil.which("node")
@@ -110,9 +111,12 @@ def test_every_method_ends_as_on_linux_and_agrees_to_rounding(fmu_paths, tmp_pat
         assert np.max(difference[:round(1 / STEP) + 1]) <= FIRST_SECOND, (start, np.max(difference[:101]))
         if name not in CHAOTIC:
             assert np.max(difference) <= OVER_RUN, (start, np.max(difference))
-    # only refusals (stormer_verlet where the mass matrix varies; it and taylor on constrained motion) and a
-    # discard (euler at 0.008 s cannot leave the slack string's circle: its step ends outside it)
-    assert sum(outcome not in ("ok", "refused") for outcome, _ in expected) <= 1
+    # only refusals (stormer_verlet where the mass matrix varies; it and taylor where a constraint always acts or
+    # acts at the start), for those two a discard where a constraint begins to act (the ball at rest), and one
+    # more discard at most (euler's step running away on the elastic double pendulum)
+    others = [outcome for start, (outcome, _) in zip(runs, expected)
+              if outcome not in ("ok", "refused") and start.get("solver") not in FREE_MOTION_ONLY]
+    assert len(others) <= 1, others
     assert sum(outcome == "refused" for outcome, _ in expected) <= 2
 
 

@@ -11,6 +11,7 @@
 #include <string.h>
 
 #include "framework.h"
+#include "integrators.h"
 
 #if N_CONSTRAINTS > 0
 
@@ -324,6 +325,17 @@ int constraint_departs(const ModelConst *c, int32_t active, int i, double t, con
     /* however fast it opens: a low-order step can dip across the boundary it leaves (Euler's straight line off a
      * string's circle dips by h^2 v^2 / 2L) for several steps, until the opening outruns the dip */
     return geo.g[i] <= CONTACT_GAP && geo.rate[i] >= -GAP_ROUNDING && !would_rest(c, active, i, t, x, u);
+}
+
+int free_motion_refused(int solver, int32_t active, const char *when, char *message, size_t size)
+{
+    int i;
+    if (!FREE_MOTION_ONLY(solver) || !(active & RIGID_UNILATERAL_BITS)) return 0;
+    for (i = 0; !(active >> i & 1); i++) continue;
+    snprintf(message, size, "constraint %s acts %s (resting or taut), and %s integrates free motion only (the free "
+             "equations' %s, without the constraint's force): take another method for this object", CONSTRAINT_NAMES[i],
+             when, solver_name(solver), solver == SOLVER_TAYLOR ? "Taylor series" : "split a(q) - d v");
+    return 1;
 }
 
 int leave_boundary(const ModelConst *c, int32_t active, int32_t departing, double t, double *x)

@@ -620,6 +620,7 @@ double integrate_taylor(RightHandSide *f, IntegratorMemory *memory, double *x, d
         memcpy(x, y, sizeof y);
         t = step == remaining ? t_end : t + step;
         memory->n_steps++;
+        if (f->single_step) break; /* events are compared at each step */
     }
     return t < t_end ? t : t_end;
 }

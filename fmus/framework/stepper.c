@@ -3,6 +3,7 @@
  * Finiteness is checked once per communication step; only when that check fails is the step
  * redone with a check after every substep, to stop at the last good one. */
 #include <math.h>
+#include <stdio.h>
 #include <string.h>
 
 #include "integrators.h"
@@ -482,6 +483,14 @@ static Status step_with_events(Instance *inst, const char *function, RightHandSi
     e.tol = s->real[VR_tol];
     e.short_of = 0;
     e.adaptive = solver == SOLVER_RKF45 || ((solver == SOLVER_GBS || solver == SOLVER_TAYLOR) && e.tol > 0.0);
+    {
+        char message[512], when[64];
+        snprintf(when, sizeof when, "at t = %.17g", t);
+        if (free_motion_refused(solver, s->active_constraints, when, message, sizeof message)) {
+            log_discard(inst, "%s: %s; nothing was done (last successful time %.17g)", function, message, t);
+            return STATUS_DISCARD;
+        }
+    }
     n = (int64_t)fmax(1.0, ceil(H / e.h - 1e-9));
     hs = H / (double)n;
     if (!e.adaptive) {
@@ -553,6 +562,16 @@ static Status step_with_events(Instance *inst, const char *function, RightHandSi
                 log_discard(inst, "%s: the constraints at t = %.17g are dependent (an impact or a contact force has no "
                             "unique solution); stopped there (last successful time %.17g)", function, ta, ta);
                 return STATUS_DISCARD;
+            }
+            {
+                char message[512], when[64];
+                snprintf(when, sizeof when, "from t = %.17g", ta);
+                if (free_motion_refused(solver, s->active_constraints, when, message, sizeof message)) {
+                    count_work(memory, f);
+                    finish(inst, t, ta - t, ta);
+                    log_discard(inst, "%s: %s; stopped there (last successful time %.17g)", function, message, ta);
+                    return STATUS_DISCARD;
+                }
             }
             /* events found again and again where they change nothing: stop rather than spin */
             stalls = memory->n_events == events_seen && s->active_constraints == active_seen ? stalls + 1 : 0;

@@ -27,7 +27,7 @@ from harness.archives import extract_fmu
 from harness.errors import HarnessError, first_problem
 from harness.fmi.binaries import checked_identifier, elf_problem
 from harness.fmi.calls import FUNCTIONS, TYPES, Calls, scalar_type
-from harness.fmi.methods import METHODS
+from harness.fmi.methods import FREE_MOTION_ONLY, METHODS
 
 # The x86_64 Linux binary's folder, per FMI version.
 PLATFORM_FOLDERS = {"2.0": "linux64", "3.0": "x86_64-linux"}
@@ -533,9 +533,24 @@ class SharedFmus:
 
 
 def accepted_methods(fmu: str) -> tuple[str, ...]:
-    """The integration methods an FMU accepts, in the Solver enumeration's order: every method but
-    stormer_verlet where the object's mass matrix is not constant, and neither it nor taylor where
-    the object has constraints. Asked of the FMU itself (setting `solver` is refused for a method it
-    lacks), so that the answer is the binary's."""
+    """The integration methods an FMU runs from its default start, in the Solver enumeration's order: every
+    method but stormer_verlet where the object's mass matrix is not constant, neither it nor taylor where a
+    constraint always acts (bilateral, compliant), and neither where a rigid constraint acts at the start (a
+    taut string: they integrate free motion only). Asked of the FMU itself (setting `solver` is refused for a
+    method it lacks, initialization for one that cannot start), so that the answer is the binary's."""
     with FmuInstance(fmu, name="probe") as instance:
-        return tuple(m.name for m in METHODS if instance.set(solver=m.name) == OK)
+        events = instance.model_description.numberOfEventIndicators > 0
+
+        def runs(method: str) -> bool:
+            if instance.set(solver=method) != OK:
+                return False
+            if not (events and method in FREE_MOTION_ONLY):
+                return True
+            try:
+                instance.initialize(0.0, solver=method)
+                return True
+            except HarnessError:
+                return False
+            finally:
+                instance.reset()
+        return tuple(m.name for m in METHODS if runs(m.name))

@@ -16,6 +16,9 @@ class Method:
     implicit: bool = False   # solved per step by Newton's method with the exact Jacobian
     needs_constant_mass: bool = False  # only for objects whose mass matrix is constant
     adaptive: bool = False   # its step (and order) controlled by tol > 0 alone
+    # built on the free equations' structure (their Taylor series, their split into a(q) - d v): on an object
+    # with constraints, only while no rigid constraint acts
+    free_motion_only: bool = False
     family: str = field(kw_only=True)  # one of FAMILIES: the charts draw each family in its own panels
 
 
@@ -57,7 +60,7 @@ METHODS = (
     Method("gauss_legendre4", 4, True, "2-stage Gauss-Legendre, symmetric, order 4 (Newton per step)",
            symmetric=True, implicit=True, family="symmetric"),
     Method("stormer_verlet", 2, True, "Stormer-Verlet, symmetric, order 2 (objects with a constant mass matrix)",
-           symmetric=True, needs_constant_mass=True, family="symmetric"),
+           symmetric=True, needs_constant_mass=True, free_motion_only=True, family="symmetric"),
     # appended: the items before keep their values
     Method("abm2", 2, True, "Adams-Bashforth-Moulton 2, predictor-corrector (PECE: ab2, trapezoid)",
            family="adams-bashforth-moulton"),
@@ -72,7 +75,8 @@ METHODS = (
     Method("taylor", TAYLOR_DEFAULT_ORDER, False,
            f"Taylor method of order taylor_order ({TAYLOR_ORDERS[0]} to {TAYLOR_ORDERS[1]}), its coefficients by Taylor "
            "arithmetic on the generated equations; fixed step h with tol = 0, else the step from its last "
-           "coefficients (after Jorba and Zou, the radius of convergence from the last four)", family="series"),
+           "coefficients (after Jorba and Zou, the radius of convergence from the last four)", free_motion_only=True,
+           family="series"),
     Method("gbs", 2 * GBS_COLUMNS, False,
            f"Gragg-Bulirsch-Stoer extrapolation: the modified midpoint rule with 2, 4, ..., 2 k substeps extrapolated "
            f"in h^2 (order 2 k, k = 2 ... gbs_columns <= {GBS_COLUMNS}); order and step chosen for tol, or column "
@@ -84,6 +88,7 @@ ADAPTIVE = tuple(m.name for m in METHODS if m.adaptive)  # rkf45 and gbs: their 
 ORDER = {m.name: m.order for m in METHODS}
 SYMMETRIC = tuple(m.name for m in METHODS if m.symmetric)
 IMPLICIT = tuple(m.name for m in METHODS if m.implicit)
+FREE_MOTION_ONLY = tuple(m.name for m in METHODS if m.free_motion_only)
 METHOD = {m.name: m for m in METHODS}
 
 # The methods that choose their own step unless tol = 0, and the settings that give their fixed step one order

@@ -18,9 +18,9 @@ from dataclasses import dataclass, field
 
 import sympy as sp
 
-from harness.fmi.methods import GBS_COLUMNS, GBS_SMALLEST_TOL, TAYLOR_ORDERS
+from harness.fmi.methods import FREE_MOTION_ONLY, GBS_COLUMNS, GBS_SMALLEST_TOL, TAYLOR_ORDERS
 from harness.objects.c_expression import c_expr
-from harness.objects.derivation import Derivation, total_derivative
+from harness.objects.derivation import Derivation, constraints_beyond_free_motion, total_derivative
 from harness.objects.object_file import FRAMEWORK_PARAMETERS, MAX_EVALUATIONS_PER_CALL
 from harness.objects.taylor_code import TaylorUnavailable, taylor_code
 
@@ -318,9 +318,9 @@ def _taylor_function(spec, n: int, nf: int, diagonal: bool, pivots: list, mass: 
     variables.update({sp.Symbol(f"u[{k}]", real=True): f"us[{k}]" for k in range(nf)})
     variables[sp.Symbol("t", real=True)] = "ts"
     try:
-        if spec.constraints:
-            raise TaylorUnavailable(f"the Taylor series of {spec.identifier}'s constrained motion are not generated "
-                                    "yet: take another method")
+        reason = constraints_beyond_free_motion(spec)
+        if reason:
+            raise TaylorUnavailable(f"{reason}, which its series do not hold")
         code = taylor_code(n, mass, diagonal, forcing, forces, variables)
     except TaylorUnavailable as reason:
         return _TaylorFunction(False, str(reason), 0, ["    (void)c, (void)t, (void)u0, (void)du, (void)order, (void)x, (void)w;",
@@ -724,9 +724,12 @@ def _constraint_header(spec) -> str:
     forces = ", ".join(f"VR_{c.outputs[1]}" for c in spec.constraints)
     indicators = ", ".join(f"VR_{c.indicator}" for c in spec.constraints)
     rigid_unilateral = sum(1 << i for i, c in enumerate(spec.constraints) if not c.compliant and not c.bilateral)
+    free_motion_only = " || ".join(f"(solver) == SOLVER_{name.upper()}" for name in FREE_MOTION_ONLY)
     return (f"#define N_CONSTRAINTS {k}\n#define N_COMPLIANT {sum(c.compliant for c in spec.constraints)}\n"
             f"#define N_BILATERAL {sum(c.bilateral for c in spec.constraints)}\n"
             f"#define RIGID_UNILATERAL_BITS {rigid_unilateral:#x}\n"
+            f"/* the methods built on the free equations: only while no rigid constraint acts */\n"
+            f"#define FREE_MOTION_ONLY(solver) ({free_motion_only})\n"
             f"#include \"constraints.h\"\n"
             f"static const char *const CONSTRAINT_NAMES[N_CONSTRAINTS] = {{{names}}};\n"
             f"static const unsigned CONSTRAINT_GAP_VRS[N_CONSTRAINTS] = {{{gaps}}};\n"

@@ -69,8 +69,9 @@ class Derivation:
         """Why the accelerations are not of the form a(q, t, F) - d v that Stormer-Verlet needs (a mass
         matrix that is constant, no velocity in f); empty when they are."""
         spec = self.spec
-        if spec.constraints:
-            return f"the constraint forces of {spec.identifier} depend on its velocities"
+        reason = constraints_beyond_free_motion(spec)
+        if reason:
+            return f"{reason}, which depend on its velocities"
         moving = sorted(str(s) for s in self.M.free_symbols & (set(spec.q) | set(spec.v) | {spec.time}))
         if moving:
             return f"the mass matrix of {spec.identifier} depends on {', '.join(moving)}"
@@ -78,6 +79,17 @@ class Derivation:
         if velocities:
             return f"the accelerations of {spec.identifier} depend on {', '.join(velocities)}"
         return ""
+
+
+def constraints_beyond_free_motion(spec) -> str:
+    """Why the object's motion is never free of constraint forces (a bilateral constraint always acts, a
+    compliant one wherever it overlaps); empty when it has only rigid unilateral constraints, or none, so that
+    its free equations hold between contacts (taylor and stormer_verlet integrate them there)."""
+    always = [c.name for c in spec.constraints if c.bilateral or c.compliant]
+    if not always:
+        return ""
+    return (f"{spec.identifier}'s constraint{'s' if len(always) > 1 else ''} {', '.join(always)} "
+            f"act{'' if len(always) > 1 else 's'} with forces")
 
 
 def _expand(expr: sp.Expr) -> sp.Expr:
