@@ -327,14 +327,16 @@ int constraint_departs(const ModelConst *c, int32_t active, int i, double t, con
     return geo.g[i] <= CONTACT_GAP && geo.rate[i] >= -GAP_ROUNDING && !would_rest(c, active, i, t, x, u);
 }
 
-int free_motion_refused(int solver, int32_t active, const char *when, char *message, size_t size)
+int free_motion_refused(int solver, int32_t active, const char *when, double t, char *message, size_t size)
 {
+    char at[48] = "";
     int i;
     if (!FREE_MOTION_ONLY(solver) || !(active & RIGID_UNILATERAL_BITS)) return 0;
     for (i = 0; !(active >> i & 1); i++) continue;
-    snprintf(message, size, "constraint %s acts %s (resting or taut), and %s integrates free motion only (the free "
+    if (isfinite(t)) snprintf(at, sizeof at, " t = %.17g", t);
+    snprintf(message, size, "constraint %s acts %s%s (resting or taut), and %s integrates free motion only (the free "
              "equations' %s, without the constraint's force): take another method for this object", CONSTRAINT_NAMES[i],
-             when, solver_name(solver), solver == SOLVER_TAYLOR ? "Taylor series" : "split a(q) - d v");
+             when, at, solver_name(solver), solver == SOLVER_TAYLOR ? "Taylor series" : "split a(q) - d v");
     return 1;
 }
 

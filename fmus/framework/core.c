@@ -293,8 +293,8 @@ Status core_exit_initialization(Instance *inst, const char *function)
         if (!start_constraints(&inst->constants, &inst->s.active_constraints, inst->s.time, inst->s.real,
                                acting_inputs(inst, u), message, sizeof message) ||
             (inst->type == INTERFACE_CO_SIMULATION &&
-             free_motion_refused(inst->s.integer[INT_solver], inst->s.active_constraints, "at the start", message,
-                                 sizeof message))) {
+             free_motion_refused(inst->s.integer[INT_solver], inst->s.active_constraints, "at the start", NAN,
+                                 message, sizeof message))) {
             log_error(inst, "%s: %s", function, message);
             return STATUS_ERROR;
         }

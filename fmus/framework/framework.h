@@ -292,8 +292,9 @@ INTERNAL int handle_event(const ModelConst *c, int32_t *active, double t, double
 INTERNAL int constraint_departs(const ModelConst *c, int32_t active, int i, double t, const double *x,
                                 const double *u);
 /* Whether a rigid constraint acts in `active` while `solver` integrates free motion only (FREE_MOTION_ONLY: taylor,
- * stormer_verlet); if so, says which and why in `message`, `when` ("at the start", "from t = ...") in it. */
-INTERNAL int free_motion_refused(int solver, int32_t active, const char *when, char *message, size_t size);
+ * stormer_verlet); if so, says which and why in `message`: acting `when` ("at the start", "from"), at time t
+ * (NAN: none). Costs nothing but the test where it refuses nothing. */
+INTERNAL int free_motion_refused(int solver, int32_t active, const char *when, double t, char *message, size_t size);
 /* Those of `departing` that the step left below g = 0 back onto it, their approaching rates to zero. */
 INTERNAL int leave_boundary(const ModelConst *c, int32_t active, int32_t departing, double t, double *x);
 /* The start values against the rigid constraints (0 with a message naming the one violated) and the

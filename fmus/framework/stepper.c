@@ -484,9 +484,8 @@ static Status step_with_events(Instance *inst, const char *function, RightHandSi
     e.short_of = 0;
     e.adaptive = solver == SOLVER_RKF45 || ((solver == SOLVER_GBS || solver == SOLVER_TAYLOR) && e.tol > 0.0);
     {
-        char message[512], when[64];
-        snprintf(when, sizeof when, "at t = %.17g", t);
-        if (free_motion_refused(solver, s->active_constraints, when, message, sizeof message)) {
+        char message[512];
+        if (free_motion_refused(solver, s->active_constraints, "at", t, message, sizeof message)) {
             log_discard(inst, "%s: %s; nothing was done (last successful time %.17g)", function, message, t);
             return STATUS_DISCARD;
         }
@@ -564,9 +563,8 @@ static Status step_with_events(Instance *inst, const char *function, RightHandSi
                 return STATUS_DISCARD;
             }
             {
-                char message[512], when[64];
-                snprintf(when, sizeof when, "from t = %.17g", ta);
-                if (free_motion_refused(solver, s->active_constraints, when, message, sizeof message)) {
+                char message[512];
+                if (free_motion_refused(solver, s->active_constraints, "from", ta, message, sizeof message)) {
                     count_work(memory, f);
                     finish(inst, t, ta - t, ta);
                     log_discard(inst, "%s: %s; stopped there (last successful time %.17g)", function, message, ta);
