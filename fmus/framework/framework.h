@@ -123,7 +123,8 @@ struct Instance {
     void *(*allocate)(size_t count, size_t size);
     void (*release)(void *memory);
     /* The Taylor method's work series (TAYLOR_SERIES of them: 3 KB for the simple pendulum, 79 KB for the
-     * five-link chain), allocated at its first step, so that an instance that never uses it pays nothing. */
+     * five-link chain), then STATE_SLOTS for the last series computed, allocated at its first step, so that an
+     * instance that never uses it pays nothing. */
     double (*taylor_work)[TAYLOR_SLOTS];
     int logging_on;
     int return_at_events; /* FMI 3.0 Co-Simulation with earlyReturnAllowed: a step ends at the first event it handles */

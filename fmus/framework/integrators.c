@@ -539,16 +539,25 @@ static double smallest_step(double t)
  * the object's generated recurrences (model_taylor), summed by Horner's rule; a step counts
  * taylor_charge(p) evaluations. */
 
-static int taylor_coefficients(RightHandSide *f, int mode, double t, const double *x,
-                               double (*series)[TAYLOR_SLOTS])
+static double (*taylor_coefficients(RightHandSide *f, int mode, double t, const double *x))[TAYLOR_SLOTS]
 {
+    double (*series)[TAYLOR_SLOTS] = f->taylor_series;
     double u[INPUT_SLOTS];
     int i;
+    /* the inputs are the call's (f), so the point alone decides the series */
+    if (f->taylor_cached && t == f->taylor_at_t && memcmp(x, f->taylor_at, N_STATES * sizeof(double)) == 0)
+        return series;
+    f->taylor_cached = 0;
     for (i = 0; i < N_STATES; i++) series[i][0] = x[i];
     for (i = 0; i < N_INPUTS; i++) u[i] = f->u0[i] + (mode == FORCES_VARY ? (t - f->t0) * f->du[i] : 0.0);
     f->evaluations += taylor_charge(f->taylor_order);
-    return model_taylor(f->model, t, mode == FORCES_NONE ? NULL : u, mode == FORCES_VARY ? f->du : NULL,
-                        f->taylor_order, series, f->taylor_work);
+    if (!model_taylor(f->model, t, mode == FORCES_NONE ? NULL : u, mode == FORCES_VARY ? f->du : NULL,
+                      f->taylor_order, series, f->taylor_work))
+        return NULL;
+    memcpy(f->taylor_at, x, N_STATES * sizeof(double));
+    f->taylor_at_t = t;
+    f->taylor_cached = 1;
+    return series;
 }
 
 static void taylor_sum(double (*series)[TAYLOR_SLOTS], int order, double s, double *x)
@@ -564,12 +573,12 @@ static void taylor_sum(double (*series)[TAYLOR_SLOTS], int order, double s, doub
 static int64_t taylor_loop(RightHandSide *f, int mode, double *x, double t0, double hs, int64_t first, int64_t n,
                            int check_each)
 {
-    double series[STATE_SLOTS][TAYLOR_SLOTS], saved[STATE_SLOTS];
+    double (*series)[TAYLOR_SLOTS], saved[STATE_SLOTS];
     int64_t i;
     for (i = first; i < first + n; i++) {
         const double t = t0 + (double)i * hs;
         memcpy(saved, x, sizeof saved);
-        if (!taylor_coefficients(f, mode, t, x, series)) return i - first;
+        if (!(series = taylor_coefficients(f, mode, t, x))) return i - first;
         taylor_sum(series, f->taylor_order, hs, x);
         if (check_each && rejected(f, t + hs, x, saved)) return i - first;
     }
@@ -590,7 +599,7 @@ double integrate_taylor(RightHandSide *f, IntegratorMemory *memory, double *x, d
 {
     const int mode = forces_mode(f), order = f->taylor_order;
     const double safety = exp(-0.7 / (order - 1));
-    double series[STATE_SLOTS][TAYLOR_SLOTS], y[STATE_SLOTS];
+    double (*series)[TAYLOR_SLOTS], y[STATE_SLOTS];
     double t = t0;
     int i;
     while (t < t_end) {
@@ -601,11 +610,12 @@ double integrate_taylor(RightHandSide *f, IntegratorMemory *memory, double *x, d
             f->out_of_budget = 1;
             break;
         }
-        if (!taylor_coefficients(f, mode, t, x, series)) break;
-        for (i = 0; i < N_STATES; i++) size = fmax(size, fabs(x[i]));
+        if (!(series = taylor_coefficients(f, mode, t, x))) break;
+        /* comparisons rather than fmax, which is a call unless non-finite numbers are ruled out */
+        for (i = 0; i < N_STATES; i++) size = fabs(x[i]) > size ? fabs(x[i]) : size;
         for (j = order; j >= 1 && j >= order - 3; j--) {
             double largest = 0.0;
-            for (i = 0; i < N_STATES; i++) largest = fmax(largest, fabs(series[i][j]));
+            for (i = 0; i < N_STATES; i++) largest = fabs(series[i][j]) > largest ? fabs(series[i][j]) : largest;
             if (largest > 0.0) h = fmin(h, pow(largest, -1.0 / j));
         }
         h *= safety * pow(tol * (1.0 + size), 1.0 / order);

@@ -75,6 +75,11 @@ typedef struct {
     int out_of_budget; /* set when an adaptive method stopped at the budget */
     int taylor_order;
     double (*taylor_work)[TAYLOR_SLOTS];
+    /* The last series computed (STATE_SLOTS of them) and where: a trial step from the same point (locating an
+     * event inside the step that crossed it) sums it again instead of computing it again. */
+    double (*taylor_series)[TAYLOR_SLOTS];
+    double taylor_at[STATE_SLOTS], taylor_at_t;
+    int taylor_cached;
     int gbs_columns; /* gbs: its column with the fixed step (tol = 0), its highest with tol > 0 */
     int single_step; /* rkf45, gbs: return after one accepted step (event checks at each of them) */
     /* J (N_STATES x N_STATES, row-major, J[i][j] = df_i/dx_j) at (t, x) with inputs u (NULL: all zero). */

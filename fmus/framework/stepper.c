@@ -670,14 +670,17 @@ Status step_to(Instance *inst, const char *function, double t, double H)
     f.gbs_columns = s->integer[INT_gbs_columns];
     f.single_step = 0;
     if (solver == SOLVER_TAYLOR && !inst->taylor_work) {
-        inst->taylor_work = (double (*)[TAYLOR_SLOTS])inst->allocate(TAYLOR_SERIES, sizeof *inst->taylor_work);
+        inst->taylor_work =
+            (double (*)[TAYLOR_SLOTS])inst->allocate(TAYLOR_SERIES + STATE_SLOTS, sizeof *inst->taylor_work);
         if (!inst->taylor_work) {
             log_error(inst, "%s: out of memory for the Taylor method's %d work series of %d coefficients", function,
-                      TAYLOR_SERIES, TAYLOR_SLOTS);
+                      TAYLOR_SERIES + STATE_SLOTS, TAYLOR_SLOTS);
             return STATUS_ERROR;
         }
     }
     f.taylor_work = inst->taylor_work;
+    f.taylor_series = inst->taylor_work ? inst->taylor_work + TAYLOR_SERIES : NULL;
+    f.taylor_cached = 0;
     f.acceptable = state_acceptable;
     f.jacobian = jacobian_at;
     f.context = inst;

@@ -86,6 +86,29 @@ static inline double taylor_chain(const double *a, const double *g, int k)
     return sum / k;
 }
 
+/* s = sin(a) and c = cos(a) (sign -1; sinh and cosh: sign 1), k >= 1: taylor_chain for both in one pass over
+ * d_j = j a_j (d_k set here, d_1 ... d_(k-1) by the calls before); inverse_k = 1 / k. Each sum in two halves (odd
+ * and even j), so that four additions run side by side instead of waiting on one another. */
+static inline void taylor_sincos(const double *a, double *d, double *s, double *c, double sign, double inverse_k,
+                                 int k)
+{
+    double odd_s = 0.0, odd_c = 0.0, even_s = 0.0, even_c = 0.0;
+    int j;
+    d[k] = k * a[k];
+    for (j = 1; j < k; j += 2) {
+        odd_s += d[j] * c[k - j];
+        odd_c += d[j] * s[k - j];
+        even_s += d[j + 1] * c[k - j - 1];
+        even_c += d[j + 1] * s[k - j - 1];
+    }
+    if (j == k) {
+        odd_s += d[k] * c[0];
+        odd_c += d[k] * s[0];
+    }
+    s[k] = (odd_s + even_s) * inverse_k;
+    c[k] = sign * ((odd_c + even_c) * inverse_k);
+}
+
 /* w = log(a), k >= 1: w_k = (a_k - (1/k) sum_{j=1..k-1} j w_j a_(k-j)) / a_0 */
 static inline double taylor_log(const double *a, const double *w, int k)
 {

@@ -342,8 +342,14 @@ def _taylor_function(spec, n: int, nf: int, diagonal: bool, pivots: list, mass: 
         lines += ["    if (forces) {", "        int i;", f"        for (i = 0; i < {nf}; i++) {{",
                   "            memset(us[i], 0, sizeof us[i]);", "            us[i][0] = u0[i];",
                   "            us[i][1] = du ? du[i] : 0.0;", "        }", "    }"]
+    shares_inverse = "inverse_k" in body
+    if shares_inverse:
+        lines.append("    double inverse_k = 0.0;")
     lines += ["    for (k = 0; k < order && k < TAYLOR_MAX_ORDER; k++) { /* the second bound for the compiler */",
-              body, "    }", "    return 1;"]
+              "        const double inverse_next = 1.0 / (k + 1); /* one division per order */", body]
+    if shares_inverse:
+        lines.append("        inverse_k = inverse_next;")
+    lines += ["    }", "    return 1;"]
     return _TaylorFunction(True, "", code.series, lines)
 
 

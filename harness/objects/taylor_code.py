@@ -9,10 +9,12 @@ of every series follows from coefficients 0 ... k of its operands:
 * square roots w = sqrt(a): w_k = (a_k - sum_{j=1..k-1} w_j w_(k-j)) / (2 w_0);
 * powers w = a^r: k a_0 w_k = sum_{j=0..k-1} (r (k - j) - j) a_(k-j) w_j;
 * functions with a known derivative, w' = g a' (sin and cos as a pair, sinh and cosh, exp, atan, ...):
-  w_k = (1/k) sum_{j=1..k} j a_j g_(k-j), where g needs only coefficients below k;
+  w_k = (1/k) sum_{j=1..k} j a_j g_(k-j), where g needs only coefficients below k (a pair in one pass over
+  the j a_j it shares, kept as a series);
 * log: w_k = (a_k - (1/k) sum_{j=1..k-1} j w_j a_(k-j)) / a_0.
 Then M_0 a_k = b_k - sum_{j=1..k} M_j a_(k-j) (M_0 factored once per step) and, from q' = v and
-v' = a - d v, q_(k+1) = v_k / (k + 1) and v_(k+1) = (a_k - d v_k) / (k + 1).
+v' = a - d v, q_(k+1) = v_k / (k + 1) and v_(k+1) = (a_k - d v_k) / (k + 1), each division a product with
+1 / (k + 1), divided once per order (inverse_next; inverse_k = 1 / k from the order before).
 """
 from __future__ import annotations
 
@@ -178,11 +180,11 @@ class _Builder:
         if name in ("sin", "cos", "sinh", "cosh"):
             a = self.node(expr.args[0]).series
             hyperbolic = name in ("sinh", "cosh")
-            s, c = self.new(), self.new()
+            s, c, d = self.new(), self.new(), self.new()  # d: the coefficients j a_j both sums share
             f0, g0 = ("sinh", "cosh") if hyperbolic else ("sin", "cos")
-            minus = "" if hyperbolic else "-"
-            self.emit(f"if (k == 0) {{ {s}[0] = {f0}({a}[0]); {c}[0] = {g0}({a}[0]); }} else {{ "
-                      f"{s}[k] = taylor_chain({a}, {c}, k); {c}[k] = {minus}taylor_chain({a}, {s}, k); }}")
+            sign = "1.0" if hyperbolic else "-1.0"
+            self.emit(f"if (k == 0) {{ {s}[0] = {f0}({a}[0]); {c}[0] = {g0}({a}[0]); }} else "
+                      f"taylor_sincos({a}, {d}, {s}, {c}, {sign}, inverse_k, k);")
             self.memo[getattr(sp, f0)(expr.args[0])] = _Node(series=s)
             self.memo[getattr(sp, g0)(expr.args[0])] = _Node(series=c)
             return _Node(series=s if name in ("sin", "sinh") else c)
@@ -267,7 +269,7 @@ def taylor_code(n: int, mass: dict[tuple[int, int], sp.Expr], diagonal: bool, fo
             builder.emit(f"r[{i}] = {sums[i]}[k]{shifted};")
         builder.emit(f"taylor_solve(m0, {n}, r);")
         builder.lines += [f"        {a}[k] = r[{j}];" for j, a in enumerate(accelerations)]
-    builder.lines += [f"        x[{j}][k + 1] = x[{n + j}][k] / (k + 1);" for j in range(n)]
-    builder.lines += [f"        x[{n + j}][k + 1] = ({a}[k] - c->d * x[{n + j}][k]) / (k + 1);"
+    builder.lines += [f"        x[{j}][k + 1] = x[{n + j}][k] * inverse_next;" for j in range(n)]
+    builder.lines += [f"        x[{n + j}][k + 1] = ({a}[k] - c->d * x[{n + j}][k]) * inverse_next;"
                       for j, a in enumerate(accelerations)]
     return TaylorCode(builder.count, builder.lines)
