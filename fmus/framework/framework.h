@@ -265,6 +265,7 @@ INTERNAL int model_taylor(const ModelConst *c, double t, const double *u0, const
 INTERNAL void model_constraints(const ModelConst *c, double t, const double *x, double *g, double *G, double *rate,
                                 double *gamma);
 INTERNAL void model_gaps(const ModelConst *c, double t, const double *x, double *g); /* g alone */
+INTERNAL void model_gap_rates(const ModelConst *c, double t, const double *x, double *g, double *rate); /* g, g' */
 INTERNAL void model_mass(const ModelConst *c, double t, const double *x, double *M);
 /* constraints.c. The accelerations dx[N_COORDINATES...] of the free motion get the constraint forces of
  * `active` (bits of the rigid unilateral constraints) and of the compliant ones; lambda (NULL: not

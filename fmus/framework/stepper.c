@@ -233,6 +233,10 @@ typedef struct {
     double t_start;
     int32_t departing, decided;
     int short_of; /* a trial step of an adaptive method stopped short: the call stops */
+    /* An Adams method's history after the step that crossed (its newest entry f at the step's start), while
+     * its event is located; NULL otherwise */
+    const IntegratorMemory *history;
+    double hs;
 } EventStepper;
 
 static const double *inputs_at(const RightHandSide *f, double t, double *u)
@@ -250,6 +254,58 @@ static void indicators_at(const EventStepper *e, double t, const double *x, doub
                                                          inputs_at(e->f, t, u), z);
 }
 
+/* w_j = the integral from 0 to sigma of the polynomial that is 1 at nodes[j] and 0 at the other nodes (in units of
+ * the step): an Adams method's weights over a fraction sigma of its step. */
+static void adams_fraction(const double *nodes, int n, double sigma, double *w)
+{
+    int j, i, m;
+    for (j = 0; j < n; j++) {
+        double poly[AB_MAX_STEPS + 1] = {1.0}, scale = 1.0, power = sigma, integral = 0.0;
+        int degree = 0;
+        for (i = 0; i < n; i++) {
+            if (i == j) continue;
+            for (m = degree + 1; m >= 1; m--) poly[m] = poly[m - 1] - nodes[i] * poly[m]; /* times (u - node i) */
+            poly[0] *= -nodes[i];
+            degree++;
+            scale *= nodes[j] - nodes[i];
+        }
+        for (m = 0; m <= degree; m++, power *= sigma) integral += poly[m] * power / (m + 1);
+        w[j] = integral / scale;
+    }
+}
+
+/* An Adams method's step over theta (at most its step hs) from (t, x0), on its own polynomials from the history e->history
+ * (newest first: f at t, t - hs, ...): Adams-Bashforth's x0 + hs sum_j beta_j(sigma) f_j, sigma = theta / hs, then for
+ * the predictor-corrector methods Adams-Moulton's on the predicted point's f (one evaluation). At theta = hs these
+ * are the method's own steps; inside, their error is of the method's order. */
+static void adams_trial_step(EventStepper *e, const double *x0, double t, double theta, double *x)
+{
+    const AdamsBashforth *ab = adams_bashforth_of(e->solver);
+    const IntegratorMemory *m = e->history;
+    const double sigma = theta / e->hs;
+    double nodes[AB_MAX_STEPS], w[AB_MAX_STEPS], slope[STATE_SLOTS], u[INPUT_SLOTS];
+    int j, q;
+    for (j = 0; j < ab->steps; j++) nodes[j] = -j;
+    adams_fraction(nodes, ab->steps, sigma, w);
+    for (q = 0; q < N_STATES; q++) {
+        double sum = 0.0;
+        for (j = 0; j < ab->steps; j++) sum += w[j] * m->ab_history[(m->ab_head - j + AB_MAX_STEPS) % AB_MAX_STEPS][q];
+        x[q] = x0[q] + e->hs * sum;
+    }
+    if (!ab->corrected) return;
+    model_equations(&e->inst->constants, t + theta, x, inputs_at(e->f, t + theta, u), slope);
+    e->f->evaluations++;
+    nodes[0] = sigma; /* the predicted point, then the history's newest ab->steps - 1 */
+    for (j = 1; j < ab->steps; j++) nodes[j] = 1 - j;
+    adams_fraction(nodes, ab->steps, sigma, w);
+    for (q = 0; q < N_STATES; q++) {
+        double sum = w[0] * slope[q];
+        for (j = 1; j < ab->steps; j++)
+            sum += w[j] * m->ab_history[(m->ab_head - (j - 1) + AB_MAX_STEPS) % AB_MAX_STEPS][q];
+        x[q] = x0[q] + e->hs * sum;
+    }
+}
+
 /* x = the method's step of theta from (t, x0), with the integrator memory `memory` left as it was. An adaptive
  * method that stops short (out of budget, its step underflowed) sets e->short_of. */
 static void trial_step(EventStepper *e, const IntegratorMemory *memory, const double *x0, double t,
@@ -257,6 +313,10 @@ static void trial_step(EventStepper *e, const IntegratorMemory *memory, const do
 {
     IntegratorMemory scratch = *memory;
     memcpy(x, x0, STATE_SLOTS * sizeof(double));
+    if (e->history && theta <= e->hs) { /* inside an Adams step: on its own polynomials, from its history */
+        adams_trial_step(e, x0, t, theta, x);
+        return;
+    }
     if (e->adaptive) {
         if (adaptive_pass(e->f, e->solver, &scratch, x, t, t + theta, e->h, e->tol, 0) < t + theta) e->short_of = 1;
     } else {
@@ -377,7 +437,10 @@ static double locate_event(EventStepper *e, const IntegratorMemory *memory, cons
     double a0[N_COORDINATES], a1[N_COORDINATES], z1[N_CONSTRAINTS], zt[N_CONSTRAINTS], xt[STATE_SLOTS];
     double first = span, lo, hi, zlo, zhi, theta;
     int k = -1, j, trial;
-    accelerations_at(e, t, x0, a0);
+    if (e->history) /* f at the step's start is the history's newest entry */
+        memcpy(a0, e->history->ab_history[e->history->ab_head] + N_COORDINATES, sizeof a0);
+    else
+        accelerations_at(e, t, x0, a0);
     accelerations_at(e, t + span, x1, a1);
     indicators_at(e, t + span, x1, z1);
     for (j = 0; j < N_CONSTRAINTS; j++) {
@@ -452,6 +515,67 @@ static double locate_event(EventStepper *e, const IntegratorMemory *memory, cons
     return hi;
 }
 
+/* A contact that closes and opens again between two comparisons (a ball through another within one long step)
+ * changes no indicator's sign. An open contact's gap that approaches at the step's start and recedes at its end
+ * may dip inside: below the tangents at the two ends, where they meet, lies the least value a convex gap can take
+ * (a V for balls that pass through each other, a parabola for a near miss). Where that lies past contact, the step
+ * is tried up to that point; a crossing there is an event like any other, and without one the side on which the
+ * gap still approaches and recedes is searched the same way. Returns the offset of the first crossing found (x1
+ * and z1 then the trial's state and indicators), or 0 where there is none. Costs the gaps' rates at the step's
+ * ends (r0 those at its start where known, else NULL), which it leaves in r1 for the next step, and a trial step
+ * with the gaps' rates per point tried. */
+#define DIP_TRIALS 8
+static double dip_within(EventStepper *e, const IntegratorMemory *memory, const double *x0, double t, double span,
+                         const double *z0, const double *r0, double *x1, double *z1, double *r1)
+{
+    const ModelConst *c = &e->inst->constants;
+    const int32_t active = e->inst->s.active_constraints;
+    double g0[N_CONSTRAINTS], start[N_CONSTRAINTS], g1[N_CONSTRAINTS], best = 0.0;
+    double found_x[STATE_SLOTS] = {0.0}, found_z[N_CONSTRAINTS] = {0.0};
+    int k, j;
+    if (r0)
+        memcpy(start, r0, sizeof start); /* r0 may be r1, which the end's rates overwrite */
+    else
+        model_gap_rates(c, t, x0, g0, start);
+    model_gap_rates(c, t + span, x1, g1, r1);
+    for (k = 0; k < N_CONSTRAINTS; k++) {
+        double a = 0.0, ga = z0[k], ra = start[k], b = span, gb = z1[k], rb = r1[k];
+        int trial;
+        if (c->law[k].bilateral || (active >> k & 1) || !(ga > 0.0) || !(gb > 0.0)) continue;
+        for (trial = 0; trial < DIP_TRIALS && ra < 0.0 && rb > 0.0 && (best == 0.0 || a < best); trial++) {
+            const double meet = (gb - ga + ra * a - rb * b) / (ra - rb);
+            double xt[STATE_SLOTS], zt[N_CONSTRAINTS], gt[N_CONSTRAINTS], rt[N_CONSTRAINTS];
+            int any = 0;
+            if (!(meet > a && meet < b) || !(ga + ra * (meet - a) < -GAP_ROUNDING)) break;
+            trial_step(e, memory, x0, t, meet, xt);
+            if (e->short_of) return 0.0;
+            indicators_at(e, t + meet, xt, zt);
+            for (j = 0; j < N_CONSTRAINTS; j++) any |= crossed(e, j, z0[j], zt[j]);
+            if (any) {
+                best = meet;
+                memcpy(found_x, xt, sizeof found_x);
+                memcpy(found_z, zt, sizeof found_z);
+                break;
+            }
+            model_gap_rates(c, t + meet, xt, gt, rt);
+            if (rt[k] < 0.0) { /* still approaching there: the dip, if any, lies after */
+                a = meet;
+                ga = gt[k];
+                ra = rt[k];
+            } else {
+                b = meet;
+                gb = gt[k];
+                rb = rt[k];
+            }
+        }
+    }
+    if (best > 0.0) {
+        memcpy(x1, found_x, sizeof found_x);
+        memcpy(z1, found_z, sizeof found_z);
+    }
+    return best;
+}
+
 /* An adaptive method stopped short inside a substep with events: the state and the integrator memory go back to
  * where they were at ta (x0, m0), and the call ends there. */
 static Status stopped_at(Instance *inst, const char *function, RightHandSide *f, int solver, double t, double ta,
@@ -474,14 +598,15 @@ static Status step_with_events(Instance *inst, const char *function, RightHandSi
     const double t_end = t + H;
     const uint64_t events_before = memory->n_events;
     int64_t n, i;
-    int reuse;
-    double hs, reached;
+    int reuse, rates_known = 0;
+    double hs, reached, rates[N_CONSTRAINTS]; /* the gaps' rates where the last step ended (adaptive methods) */
     e.inst = inst;
     e.f = f;
     e.solver = solver;
     e.h = s->real[VR_h];
     e.tol = s->real[VR_tol];
     e.short_of = 0;
+    e.history = NULL;
     e.adaptive = solver == SOLVER_RKF45 || ((solver == SOLVER_GBS || solver == SOLVER_TAYLOR) && e.tol > 0.0);
     {
         char message[512];
@@ -492,6 +617,7 @@ static Status step_with_events(Instance *inst, const char *function, RightHandSi
     }
     n = (int64_t)fmax(1.0, ceil(H / e.h - 1e-9));
     hs = H / (double)n;
+    e.hs = hs;
     if (!e.adaptive) {
         /* each substep, and at most an event's location per substep */
         const double work = 2.0 * evaluations_needed(solver, 0, (double)n, f) + (double)n;
@@ -537,11 +663,28 @@ static Status step_with_events(Instance *inst, const char *function, RightHandSi
         }
         indicators_at(&e, tb, x, z1);
         for (any = 0, k = 0; k < N_CONSTRAINTS; k++) any |= crossed(&e, k, z0[k], z1[k]);
+        if (!any && e.adaptive) { /* an adaptive step grows to h: a contact may close and open again inside it */
+            const double dip = dip_within(&e, &m0, x0, ta, tb - ta, z0, reuse && rates_known ? rates : NULL, x, z1,
+                                          rates);
+            rates_known = dip == 0.0;
+            if (e.short_of) return stopped_at(inst, function, f, solver, t, ta, x, x0, memory, &m0);
+            if (dip > 0.0) {
+                tb = ta + dip;
+                any = 1;
+            }
+        } else {
+            rates_known = 0; /* an event moves the state from where its rates were */
+        }
         while (any) {
             double located[STATE_SLOTS], theta;
             const int32_t active_before = s->active_constraints;
             memcpy(located, x, sizeof located); /* the step's end, past the event */
+            /* an Adams step that crossed (not its starter's): trial steps on its polynomial */
+            e.history = !e.adaptive && adams_bashforth_of(solver) &&
+                                memory->ab_count >= adams_bashforth_of(solver)->steps
+                            ? memory : NULL;
             theta = locate_event(&e, &m0, x0, ta, tb - ta, z0, located, x);
+            e.history = NULL;
             if (e.short_of) { /* a trial step stopped short: the event is not located; back to the step's start */
                 return stopped_at(inst, function, f, solver, t, ta, x, x0, memory, &m0);
             }

@@ -770,6 +770,8 @@ def _constraint_functions(derivation: Derivation, prepared, state_locals: list[s
         lines += [f"    rate[{k}] = {c_expr(rate)};", f"    gamma[{k}] = {c_expr(gamma)};"]
     gap_lines, gap_reduced, _ = _cse_lines([prepared(term.gap) for term in terms], "w")
     gap_lines += [f"    g[{k}] = {c_expr(e)};" for k, e in enumerate(gap_reduced)]
+    rate_lines, rate_reduced, _ = _cse_lines([prepared(v) for term in terms for v in (term.gap, term.rate)], "w")
+    rate_lines += [f"    {'g' if j % 2 == 0 else 'rate'}[{j // 2}] = {c_expr(e)};" for j, e in enumerate(rate_reduced)]
     mass_lines, mass_reduced, _ = _cse_lines([prepared(derivation.M[i, j]) for i in range(n) for j in range(n)], "w")
     mass_lines += [f"    M[{k}] = {c_expr(e)};" for k, e in enumerate(mass_reduced)]
     signature = "const ModelConst *c, double t, const double *x"
@@ -781,6 +783,9 @@ def _constraint_functions(derivation: Derivation, prepared, state_locals: list[s
         "/* The gaps alone (what an event indicator needs between events). */",
         f"void model_gaps({signature}, double *g)", "{", *_with_locals(state_locals, gap_lines + ["    (void)c, (void)t;"]),
         "}", "",
+        "/* The gaps and their rates g' (whether a contact can open and close again within a step). */",
+        f"void model_gap_rates({signature}, double *g, double *rate)", "{",
+        *_with_locals(state_locals, rate_lines + ["    (void)c, (void)t;"]), "}", "",
         "/* The mass matrix d2T/dv2 at (t, x), row by row. */",
         f"void model_mass({signature}, double *M)", "{", *_with_locals(state_locals, mass_lines + ["    (void)c, (void)t, (void)x;"]),
         "}", ""])
