@@ -101,15 +101,17 @@ def method_tables(program: str | None = None) -> dict:
     return json.loads(subprocess.run([program], check=True, capture_output=True, text=True).stdout)
 
 
-def verlet_matrix(w: float, c: float) -> np.ndarray:
+def verlet_matrix(w, c) -> np.ndarray:
     """Stormer-Verlet's step on q'' = -omega^2 q - d q' (its form with damping, integrators.c) as a
-    matrix on (q, h q'), with w = (h omega)^2 and c = h d."""
+    matrix on (q, h q'), with w = (h omega)^2 and c = h d (arrays of them: a matrix per element, on the
+    last two axes)."""
+    w, c = np.asarray(w, dtype=float), np.asarray(c, dtype=float)
     shrink = 1.0 / (1.0 + c / 2)
     # u+ = (u - w/2 q) shrink;  q1 = q + u+;  u1 = (1 - c/2) u+ - w/2 q1
-    u_half = np.array([-w / 2 * shrink, shrink])
+    u_half = np.stack([-w / 2 * shrink, shrink * np.ones_like(w)], axis=-1)
     q1 = np.array([1.0, 0.0]) + u_half
-    u1 = (1 - c / 2) * u_half - w / 2 * q1
-    return np.array([q1, u1])
+    u1 = (1 - c / 2)[..., None] * u_half - (w / 2)[..., None] * q1
+    return np.stack([q1, u1], axis=-2)
 
 
 def pair_growth(z1: complex, z2: complex) -> float:
@@ -397,8 +399,14 @@ def growth_on_grid(table: dict, z: np.ndarray) -> np.ndarray:
         return np.abs(truncated_exponential(z, table.get("order", TAYLOR_DEFAULT_ORDER)))
     if table.get("extrapolation"):
         return np.abs(extrapolated_midpoint(z, table["columns"]))
-    if table.get("partitioned") or table.get("implicit"):  # few points need it: one at a time
-        return np.vectorize(lambda value: growth(table, complex(value)))(z)
+    if table.get("partitioned"):  # the oscillator whose roots are z and its conjugate
+        matrices = verlet_matrix((z * z.conjugate()).real, -(z + z.conjugate()).real)
+        return np.max(np.abs(np.linalg.eigvals(matrices)), axis=-1)
+    if table.get("implicit"):  # R(z) = 1 + z b (I - z A)^-1 1, a system per point
+        a, b = np.asarray(table["a"], dtype=float), np.asarray(table["b"], dtype=float)
+        systems = np.eye(len(b)) - z[..., None, None] * a
+        stages = np.linalg.solve(systems, np.ones(z.shape + (len(b), 1), dtype=complex))[..., 0]
+        return np.abs(1 + z * (stages @ b))
     if "beta" in table:
         weights = multistep_weights(table, z)
         k = weights.shape[-1]
