@@ -327,7 +327,7 @@ static int implicit_step(RightHandSide *f, const Evaluator *e, int mode, const B
 {
     enum { DIM = IMPLICIT_MAX_STAGES * STATE_SLOTS };
     const int s = tab->stages, dim = s * N_STATES;
-    double J[STATE_SLOTS * STATE_SLOTS], newton[DIM * DIM];
+    double J[STATE_SLOTS * STATE_SLOTS], newton[DIM * DIM], slope[STATE_SLOTS];
     double F[IMPLICIT_MAX_STAGES][STATE_SLOTS], r[DIM], y[STATE_SLOTS], u[INPUT_SLOTS];
     double previous = INFINITY;
     const int explicit_first = explicit_stage(tab, 0);
@@ -336,9 +336,21 @@ static int implicit_step(RightHandSide *f, const Evaluator *e, int mode, const B
         for (i = 0; i < N_INPUTS; i++) u[i] = e->u0[i] + (t - e->t0) * e->du[i];
     else if (mode == FORCES_HELD)
         for (i = 0; i < N_INPUTS; i++) u[i] = e->u0[i];
-    f->jacobian(f->context, t, x, mode == FORCES_NONE ? NULL : u, J);
-    f->jacobians++;
-    f->evaluations++; /* the Jacobian's columns need f(t, x) itself once */
+    if (f->kept_jacobian && f->kept_jacobian->valid && t == f->kept_jacobian->t &&
+        memcmp(x, f->kept_jacobian->x, N_STATES * sizeof(double)) == 0) {
+        memcpy(J, f->kept_jacobian->J, sizeof J);
+    } else {
+        f->jacobian(f->context, t, x, mode == FORCES_NONE ? NULL : u, J, slope);
+        f->jacobians++;
+        f->evaluations++; /* the Jacobian's columns need f(t, x) itself once */
+        if (f->kept_jacobian) {
+            f->kept_jacobian->valid = 1;
+            f->kept_jacobian->t = t;
+            memcpy(f->kept_jacobian->x, x, N_STATES * sizeof(double));
+            memcpy(f->kept_jacobian->J, J, sizeof J);
+            memcpy(f->kept_jacobian->slope, slope, sizeof slope);
+        }
+    }
     if (first_non_finite(J, N_STATES * N_STATES) >= 0) return 0;
     for (i = 0; i < s; i++)
         for (p = 0; p < N_STATES; p++)
@@ -432,28 +444,34 @@ ENGINE_INLINE void accelerations(const Evaluator *e, int mode, double t, const d
 /* Stormer-Verlet for q' = v, v' = a(t, q) - d v in its symmetric form for velocity-dependent forces:
  * v+ = v + h/2 (a(t, q) - d v+), q1 = q + h v+, v1 = v+ + h/2 (a(t + h, q1) - d v+). Without damping
  * it is the symplectic velocity Verlet; a(t + h, q1) starts the next step. */
+ENGINE_INLINE void verlet_step(const Evaluator *e, int mode, double damping, double t, double h, double *x, double *g)
+{
+    const double shrink = 1.0 / (1.0 + 0.5 * h * damping);
+    double v_half[STATE_SLOTS];
+    int j;
+    UNROLL for (j = 0; j < N_COORDINATES; j++) {
+        v_half[j] = (x[N_COORDINATES + j] + 0.5 * h * g[N_COORDINATES + j]) * shrink;
+        x[j] += h * v_half[j];
+    }
+    accelerations(e, mode, t + h, x, g);
+    UNROLL for (j = 0; j < N_COORDINATES; j++)
+        x[N_COORDINATES + j] = v_half[j] + 0.5 * h * (g[N_COORDINATES + j] - damping * v_half[j]);
+}
+
 ENGINE_INLINE int64_t stormer_verlet_loop(RightHandSide *f, int mode, double *x, double t0, double hs, int64_t first,
                                           int64_t n, int check_each)
 {
     const Evaluator e = evaluator_of(f);
     const double damping = f->model->d;
-    const double shrink = 1.0 / (1.0 + 0.5 * hs * damping);
-    double g[STATE_SLOTS], saved[STATE_SLOTS], v_half[STATE_SLOTS];
+    double g[STATE_SLOTS], saved[STATE_SLOTS];
     int64_t i;
-    int j;
     accelerations(&e, mode, t0 + (double)first * hs, x, g);
     f->evaluations++;
     for (i = first; i < first + n; i++) {
         const double t = t0 + (double)i * hs;
         if (check_each) memcpy(saved, x, sizeof saved);
-        UNROLL for (j = 0; j < N_COORDINATES; j++) {
-            v_half[j] = (x[N_COORDINATES + j] + 0.5 * hs * g[N_COORDINATES + j]) * shrink;
-            x[j] += hs * v_half[j];
-        }
-        accelerations(&e, mode, t + hs, x, g);
+        verlet_step(&e, mode, damping, t, hs, x, g); /* g: the accelerations at the step's start, then at its end */
         f->evaluations++;
-        UNROLL for (j = 0; j < N_COORDINATES; j++)
-            x[N_COORDINATES + j] = v_half[j] + 0.5 * hs * (g[N_COORDINATES + j] - damping * v_half[j]);
         if (check_each && rejected(f, t + hs, x, saved)) return i - first;
     }
     return n;
@@ -779,6 +797,87 @@ int64_t integrate_fixed(RightHandSide *f, int solver, IntegratorMemory *memory, 
     if (done < 0) return 0;
     memory->n_steps += (uint64_t)done;
     return done;
+}
+
+int steps_from_slope(int solver)
+{
+    const ButcherTableau *tab = tableau_of(solver);
+    return solver == SOLVER_GBS || (tab && !tab->implicit && solver != SOLVER_RKF45) ||
+           (SPLIT_ACCELERATIONS && solver == SOLVER_STORMER_VERLET);
+}
+
+ENGINE_INLINE void mode_slope(const Evaluator *e, int mode, int solver, double t, const double *x, double *dx)
+{
+#if SPLIT_ACCELERATIONS
+    if (solver == SOLVER_STORMER_VERLET) {
+        accelerations(e, mode, t, x, dx);
+        return;
+    }
+#endif
+    evaluate(e, mode, t, x, dx);
+}
+
+void slope_at(RightHandSide *f, int solver, double t, const double *x, double *dx)
+{
+    const Evaluator e = evaluator_of(f);
+    switch (forces_mode(f)) {
+    case FORCES_NONE: mode_slope(&e, FORCES_NONE, solver, t, x, dx); break;
+    case FORCES_HELD: mode_slope(&e, FORCES_HELD, solver, t, x, dx); break;
+    default: mode_slope(&e, FORCES_VARY, solver, t, x, dx); break;
+    }
+    f->evaluations++;
+}
+
+void slope_accelerations(const RightHandSide *f, int solver, const double *slope, const double *x, double *a)
+{
+    int j;
+    for (j = 0; j < N_COORDINATES; j++)
+        a[j] = slope[N_COORDINATES + j] - (solver == SOLVER_STORMER_VERLET ? f->model->d * x[N_COORDINATES + j] : 0.0);
+}
+
+/* One step of steps_from_slope's methods with f0 given, for a constant forces mode. */
+ENGINE_INLINE void slope_step(RightHandSide *f, const Evaluator *e, int mode, int solver, double t, double h, double *x,
+                              const double *f0)
+{
+#if SPLIT_ACCELERATIONS
+    if (solver == SOLVER_STORMER_VERLET) {
+        double g[STATE_SLOTS];
+        memcpy(g, f0, sizeof g);
+        verlet_step(e, mode, f->model->d, t, h, x, g);
+        f->evaluations++;
+        return;
+    }
+#endif
+    if (solver == SOLVER_GBS) {
+        double table[GBS_MAX_COLUMNS][STATE_SLOTS];
+        int k;
+        for (k = 1; k <= f->gbs_columns; k++) gbs_row(e, mode, t, h, k, x, f0, table);
+        memcpy(x, table[f->gbs_columns - 1], STATE_SLOTS * sizeof(double));
+        f->evaluations += gbs_work(f->gbs_columns) - 1;
+    } else { /* each with its constant tableau, as fixed_loop has them */
+        const ButcherTableau *tab = tableau_of(solver);
+        switch (solver) {
+        case SOLVER_EULER: runge_kutta_step(e, mode, &TABLEAU_EULER, t, h, x, f0, NULL); break;
+        case SOLVER_MIDPOINT: runge_kutta_step(e, mode, &TABLEAU_MIDPOINT, t, h, x, f0, NULL); break;
+        case SOLVER_HEUN: runge_kutta_step(e, mode, &TABLEAU_HEUN, t, h, x, f0, NULL); break;
+        case SOLVER_RK3: runge_kutta_step(e, mode, &TABLEAU_RK3, t, h, x, f0, NULL); break;
+        case SOLVER_RK4: runge_kutta_step(e, mode, &TABLEAU_RK4, t, h, x, f0, NULL); break;
+        default: runge_kutta_step(e, mode, &TABLEAU_NYSTROM5, t, h, x, f0, NULL); break;
+        }
+        f->evaluations += (uint64_t)(tab->stages - 1);
+    }
+}
+
+void step_from_slope(RightHandSide *f, int solver, IntegratorMemory *memory, double *x, double t, double h,
+                     const double *f0)
+{
+    const Evaluator e = evaluator_of(f);
+    switch (forces_mode(f)) {
+    case FORCES_NONE: slope_step(f, &e, FORCES_NONE, solver, t, h, x, f0); break;
+    case FORCES_HELD: slope_step(f, &e, FORCES_HELD, solver, t, h, x, f0); break;
+    default: slope_step(f, &e, FORCES_VARY, solver, t, h, x, f0); break;
+    }
+    memory->n_steps++;
 }
 
 /* The start of an adaptive step that may take `work` evaluations: 0 (setting f->out_of_budget) when they

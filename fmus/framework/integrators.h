@@ -58,6 +58,13 @@ extern INTERNAL const char STORMER_VERLET_NAME[], TAYLOR_NAME[], GBS_NAME[];
 #define CHECK_BLOCK 64
 extern INTERNAL const AdamsBashforth AB2, AB3, AB4, AB5, AB6, ABM2, ABM3, ABM4, ABM5, ABM6;
 
+/* A Jacobian kept with the point it was taken at: the implicit methods' trial steps from one point (locating an event
+ * inside a step) take it again instead of computing it again. Valid while the constraints acting stay the same. */
+typedef struct {
+    int valid;
+    double t, x[STATE_SLOTS], J[STATE_SLOTS * STATE_SLOTS], slope[STATE_SLOTS]; /* slope: f(t, x) */
+} KeptJacobian;
+
 /* The right-hand side as the engines see it: the model, and inputs that vary linearly over the
  * communication step, u(t) = u0 + (t - t0) du. Counts its evaluations. */
 typedef struct {
@@ -82,8 +89,10 @@ typedef struct {
     int taylor_cached;
     int gbs_columns; /* gbs: its column with the fixed step (tol = 0), its highest with tol > 0 */
     int single_step; /* rkf45, gbs: return after one accepted step (event checks at each of them) */
-    /* J (N_STATES x N_STATES, row-major, J[i][j] = df_i/dx_j) at (t, x) with inputs u (NULL: all zero). */
-    void (*jacobian)(void *context, double t, const double *x, const double *u, double *J);
+    /* J (N_STATES x N_STATES, row-major, J[i][j] = df_i/dx_j) and slope = f(t, x) at (t, x) with inputs u (NULL: all
+     * zero). */
+    void (*jacobian)(void *context, double t, const double *x, const double *u, double *J, double *slope);
+    KeptJacobian *kept_jacobian; /* NULL: none kept */
     /* Whether a state is good enough to continue from (finite, not singular, finite outputs);
      * called only in checking passes, never in the hot loop. */
     int (*acceptable)(void *context, double t, const double *x);
@@ -96,6 +105,20 @@ typedef struct {
  * Returns the number of substeps completed. */
 INTERNAL int64_t integrate_fixed(RightHandSide *f, int solver, IntegratorMemory *memory, double *x, double t0, double hs,
                         int64_t first, int64_t n, int check_each);
+
+/* Whether a fixed step of `solver` starts from one evaluation at its start (its slope: f(t, x) for the explicit
+ * Runge-Kutta methods and gbs, the accelerations a(t, q) for Stormer-Verlet): the event stepper evaluates it once
+ * per start and takes the trial steps that locate an event inside the step from it, instead of evaluating it again
+ * for each. */
+INTERNAL int steps_from_slope(int solver);
+/* The slope of `solver` at (t, x) into dx, counted as an evaluation. */
+INTERNAL void slope_at(RightHandSide *f, int solver, double t, const double *x, double *dx);
+/* The accelerations of the motion at x from the slope there. */
+INTERNAL void slope_accelerations(const RightHandSide *f, int solver, const double *slope, const double *x, double *a);
+/* One fixed step of h from (t, x) with its slope f0 at the start given, for a solver of steps_from_slope: the same
+ * arithmetic as integrate_fixed's step, less the evaluation of f0. */
+INTERNAL void step_from_slope(RightHandSide *f, int solver, IntegratorMemory *memory, double *x, double t, double h,
+                              const double *f0);
 
 /* Fehlberg 4(5) with step-size control from t0 to t_end; starts from memory->step_proposal (or
  * h_initial) and leaves its next proposal there. A step whose result fails model_state_ok (or, with
