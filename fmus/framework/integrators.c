@@ -728,22 +728,30 @@ ENGINE_INLINE void gbs_row(const Evaluator *e, int mode, double t, double H, int
     extrapolate_row(table, k, first);
 }
 
+/* x = T(k, k) of column k = f->gbs_columns for the step h from (t, x), f0 = f(t, x): gbs_work(k) - 1 evaluations. */
+ENGINE_INLINE void gbs_step(const RightHandSide *f, const Evaluator *e, int mode, double t, double h, double *x,
+                            const double *f0)
+{
+    double table[GBS_MAX_COLUMNS][STATE_SLOTS];
+    int k;
+    for (k = 1; k <= f->gbs_columns; k++) gbs_row(e, mode, t, h, k, x, f0, table);
+    memcpy(x, table[f->gbs_columns - 1], STATE_SLOTS * sizeof(double));
+}
+
 /* gbs with the fixed step hs (tol = 0): T(k, k) of column k = f->gbs_columns each step, of order 2k. */
 static int64_t extrapolation_loop(RightHandSide *f, int mode, double *x, double t0, double hs, int64_t first, int64_t n,
                                   int check_each)
 {
     const Evaluator e = evaluator_of(f);
     const int columns = f->gbs_columns;
-    double table[GBS_MAX_COLUMNS][STATE_SLOTS], f0[STATE_SLOTS], saved[STATE_SLOTS];
+    double f0[STATE_SLOTS], saved[STATE_SLOTS];
     int64_t i;
-    int k;
     for (i = first; i < first + n; i++) {
         const double t = t0 + (double)i * hs;
         memcpy(saved, x, sizeof saved);
         evaluate(&e, mode, t, x, f0);
-        for (k = 1; k <= columns; k++) gbs_row(&e, mode, t, hs, k, x, f0, table);
+        gbs_step(f, &e, mode, t, hs, x, f0);
         f->evaluations += gbs_work(columns);
-        memcpy(x, table[columns - 1], sizeof saved);
         if (check_each && rejected(f, t + hs, x, saved)) return i - first;
     }
     return n;
@@ -849,10 +857,7 @@ ENGINE_INLINE void slope_step(RightHandSide *f, const Evaluator *e, int mode, in
     }
 #endif
     if (solver == SOLVER_GBS) {
-        double table[GBS_MAX_COLUMNS][STATE_SLOTS];
-        int k;
-        for (k = 1; k <= f->gbs_columns; k++) gbs_row(e, mode, t, h, k, x, f0, table);
-        memcpy(x, table[f->gbs_columns - 1], STATE_SLOTS * sizeof(double));
+        gbs_step(f, e, mode, t, h, x, f0);
         f->evaluations += gbs_work(f->gbs_columns) - 1;
     } else { /* each with its constant tableau, as fixed_loop has them */
         const ButcherTableau *tab = tableau_of(solver);
