@@ -5,6 +5,7 @@ the harness's master against a plain fmpy loop (list API), libcosim, ecos and a 
 from __future__ import annotations
 
 import argparse
+import os
 import statistics
 import subprocess
 import sys
@@ -83,8 +84,11 @@ def plain_fmpy_cost(steps: int) -> float:
 
 def peer_cost(peer: str, steps: int) -> float | None:
     ssp = build_dir() / "scenes" / "coupled_pendulums.ssp"
-    result = subprocess.run([sys.executable, str(ROOT / "benchmarks" / "peer_step_cost.py"), peer, str(ssp), str(STEP),
-                             str(steps)], capture_output=True, text=True)
+    # ecos extracts the SSP into the temporary folder and leaves it there: give it one that goes
+    with tempfile.TemporaryDirectory(prefix="peer_") as scratch:
+        result = subprocess.run([sys.executable, str(ROOT / "benchmarks" / "peer_step_cost.py"), peer, str(ssp),
+                                 str(STEP), str(steps)], capture_output=True, text=True,
+                                env={**os.environ, "TMPDIR": scratch})
     lines = [line for line in result.stdout.splitlines() if line.startswith("RESULT")]
     return float(lines[-1].split()[1]) if result.returncode == 0 and lines else None
 

@@ -112,7 +112,14 @@ def _run(block: Block, folder: Path) -> None:
         script = folder / f"block_{block.line}.py"
         script.write_text(block.text)
         command = [sys.executable, script.name]
-    result = subprocess.run(command, cwd=folder, env=_environment(), capture_output=True, text=True, timeout=900)
+    # Some importers (ecos) extract into the temporary folder and leave it there: the block gets one that goes.
+    scratch = folder / f"tmp_{block.line}"
+    scratch.mkdir()
+    try:
+        result = subprocess.run(command, cwd=folder, env={**_environment(), "TMPDIR": str(scratch)},
+                                capture_output=True, text=True, timeout=900)
+    finally:
+        shutil.rmtree(scratch, ignore_errors=True)
     assert result.returncode == 0, (f"{block.where}: exited with {result.returncode}\n{block.text}\n"
                                     f"{result.stdout[-2000:]}\n{result.stderr[-3000:]}")
 
