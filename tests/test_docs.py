@@ -30,6 +30,7 @@ import shlex
 import shutil
 import subprocess
 import sys
+import tempfile
 import tomllib
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -112,9 +113,9 @@ def _run(block: Block, folder: Path) -> None:
         script = folder / f"block_{block.line}.py"
         script.write_text(block.text)
         command = [sys.executable, script.name]
-    # Some importers (ecos) extract into the temporary folder and leave it there: the block gets one that goes.
-    scratch = folder / f"tmp_{block.line}"
-    scratch.mkdir()
+    # Some importers (ecos) extract into the temporary folder and leave it there: the block gets one that goes,
+    # short and in the system's (a browser puts its sockets there, and a socket's path has a length limit).
+    scratch = Path(tempfile.mkdtemp(prefix="block"))
     try:
         result = subprocess.run(command, cwd=folder, env={**_environment(), "TMPDIR": str(scratch)},
                                 capture_output=True, text=True, timeout=900)
