@@ -665,6 +665,7 @@ static int restored_state_valid(Instance *inst, const char *function, const SimS
 #endif
     if (s->integrator.ab_count < 0 || s->integrator.ab_count > AB_MAX_STEPS || s->integrator.ab_head < 0 ||
         s->integrator.ab_head >= AB_MAX_STEPS || !isfinite(s->integrator.ab_step) ||
+        (s->integrator.ab_restarted != 0 && s->integrator.ab_restarted != 1) ||
         !(s->integrator.step_proposal >= 0.0) || !isfinite(s->integrator.step_proposal) ||
         !gbs_memory_valid(&s->integrator)) {
         log_error(inst, "%s: the FMU state's integrator memory is invalid", function);

@@ -85,6 +85,7 @@ typedef struct {
     double step_proposal;                          /* rkf45, gbs: next step size, 0 = start from h */
     int32_t gbs_columns;                           /* gbs: the column to reach next step, 0 = from tol */
     int32_t gbs_rejected;                          /* gbs: the last step was rejected (no growth next) */
+    int32_t ab_restarted;                          /* 1: the history starts again after an event (restarter) */
 } IntegratorMemory;
 
 /* Everything that makes up the FMU state: plain numbers only, so it serializes as bytes and

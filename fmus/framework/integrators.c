@@ -60,29 +60,29 @@ const char STORMER_VERLET_NAME[] = "stormer_verlet";
 const char TAYLOR_NAME[] = "taylor";
 const char GBS_NAME[] = "gbs";
 
-const AdamsBashforth AB2 = {"ab2", 2, {3.0 / 2, -1.0 / 2}, &TABLEAU_RK4, 0, {0}};
-const AdamsBashforth AB3 = {"ab3", 3, {23.0 / 12, -16.0 / 12, 5.0 / 12}, &TABLEAU_RK4, 0, {0}};
-const AdamsBashforth AB4 = {"ab4", 4, {55.0 / 24, -59.0 / 24, 37.0 / 24, -9.0 / 24}, &TABLEAU_RK4, 0, {0}};
+const AdamsBashforth AB2 = {"ab2", 2, {3.0 / 2, -1.0 / 2}, &TABLEAU_RK4, 0, {0}, &TABLEAU_EULER};
+const AdamsBashforth AB3 = {"ab3", 3, {23.0 / 12, -16.0 / 12, 5.0 / 12}, &TABLEAU_RK4, 0, {0}, &TABLEAU_MIDPOINT};
+const AdamsBashforth AB4 = {"ab4", 4, {55.0 / 24, -59.0 / 24, 37.0 / 24, -9.0 / 24}, &TABLEAU_RK4, 0, {0}, &TABLEAU_RK3};
 const AdamsBashforth AB5 = {
-    "ab5", 5, {1901.0 / 720, -2774.0 / 720, 2616.0 / 720, -1274.0 / 720, 251.0 / 720}, &TABLEAU_RK4, 0, {0}};
+    "ab5", 5, {1901.0 / 720, -2774.0 / 720, 2616.0 / 720, -1274.0 / 720, 251.0 / 720}, &TABLEAU_RK4, 0, {0}, &TABLEAU_RK4};
 #define AB6_BETA {4277.0 / 1440, -7923.0 / 1440, 9982.0 / 1440, -7298.0 / 1440, 2877.0 / 1440, -475.0 / 1440}
-const AdamsBashforth AB6 = {"ab6", 6, AB6_BETA, &TABLEAU_NYSTROM5, 0, {0}};
+const AdamsBashforth AB6 = {"ab6", 6, AB6_BETA, &TABLEAU_NYSTROM5, 0, {0}, &TABLEAU_NYSTROM5};
 
 /* Adams-Bashforth-Moulton, PECE (thesis 4.2, predictor-corrector): the k-step Adams-Bashforth
  * predictor, f at the prediction, the (k-1)-step Adams-Moulton corrector of the same order k; the
  * next step's f(k) is taken at the corrected point. Two evaluations per step. abm5 starts with
  * nystrom5, not ab5's rk4: its error constant is 8 times smaller than ab5's, and an order-4 start
  * would dominate it over a short run. */
-const AdamsBashforth ABM2 = {"abm2", 2, {3.0 / 2, -1.0 / 2}, &TABLEAU_RK4, 1, {1.0 / 2, 1.0 / 2}};
+const AdamsBashforth ABM2 = {"abm2", 2, {3.0 / 2, -1.0 / 2}, &TABLEAU_RK4, 1, {1.0 / 2, 1.0 / 2}, &TABLEAU_EULER};
 const AdamsBashforth ABM3 = {"abm3", 3, {23.0 / 12, -16.0 / 12, 5.0 / 12}, &TABLEAU_RK4, 1,
-                             {5.0 / 12, 8.0 / 12, -1.0 / 12}};
+                             {5.0 / 12, 8.0 / 12, -1.0 / 12}, &TABLEAU_MIDPOINT};
 const AdamsBashforth ABM4 = {"abm4", 4, {55.0 / 24, -59.0 / 24, 37.0 / 24, -9.0 / 24}, &TABLEAU_RK4, 1,
-                             {9.0 / 24, 19.0 / 24, -5.0 / 24, 1.0 / 24}};
+                             {9.0 / 24, 19.0 / 24, -5.0 / 24, 1.0 / 24}, &TABLEAU_RK3};
 const AdamsBashforth ABM5 = {
     "abm5", 5, {1901.0 / 720, -2774.0 / 720, 2616.0 / 720, -1274.0 / 720, 251.0 / 720}, &TABLEAU_NYSTROM5, 1,
-    {251.0 / 720, 646.0 / 720, -264.0 / 720, 106.0 / 720, -19.0 / 720}};
+    {251.0 / 720, 646.0 / 720, -264.0 / 720, 106.0 / 720, -19.0 / 720}, &TABLEAU_RK4};
 const AdamsBashforth ABM6 = {"abm6", 6, AB6_BETA, &TABLEAU_NYSTROM5, 1,
-                             {475.0 / 1440, 1427.0 / 1440, -798.0 / 1440, 482.0 / 1440, -173.0 / 1440, 27.0 / 1440}};
+                             {475.0 / 1440, 1427.0 / 1440, -798.0 / 1440, 482.0 / 1440, -173.0 / 1440, 27.0 / 1440}, &TABLEAU_NYSTROM5};
 
 #if N_STATES > 0
 
@@ -210,7 +210,8 @@ ENGINE_INLINE int64_t runge_kutta_loop(RightHandSide *f, int mode, const Butcher
 }
 
 /* Adams-Bashforth: x(k+1) = x(k) + h sum beta_j f(k-j). Until enough history exists the starter
- * Runge-Kutta method steps, and its first stage, f(k), goes into the history all the same. */
+ * Runge-Kutta method steps (the restarter after an event), and its first stage, f(k), goes into the history all the
+ * same. */
 ENGINE_INLINE int64_t adams_bashforth_loop(RightHandSide *f, int mode, const AdamsBashforth *ab, IntegratorMemory *m,
                                            double *x, double t0, double hs, int64_t first, int64_t n, int check_each)
 {
@@ -232,8 +233,10 @@ ENGINE_INLINE int64_t adams_bashforth_loop(RightHandSide *f, int mode, const Ada
         f->evaluations++;
         if (m->ab_count < AB_MAX_STEPS) m->ab_count++;
         if (m->ab_count < ab->steps) {
-            runge_kutta_step(&e, mode, ab->starter, t, hs, x, newest, NULL);
-            f->evaluations += (uint64_t)(ab->starter->stages - 1);
+            const ButcherTableau *start = m->ab_restarted ? ab->restarter : ab->starter;
+            if (m->ab_count + 1 == ab->steps) m->ab_restarted = 0; /* the history is whole after this step */
+            runge_kutta_step(&e, mode, start, t, hs, x, newest, NULL);
+            f->evaluations += (uint64_t)(start->stages - 1);
         } else if (!ab->corrected) {
             UNROLL for (q = 0; q < N_STATES; q++) {
                 double sum = ab->beta[0] * newest[q];

@@ -35,6 +35,11 @@ typedef struct {
      * predicted f(k+1), then f(k), ..., f(k-steps+2) */
     int corrected;
     double moulton[AB_MAX_COEFFICIENTS];
+    /* Runge-Kutta method of order steps - 1 for the first steps after an event: the least order that keeps the
+     * method's (each of its steps' local error is of order h^steps), with the fewest stages. The history starts
+     * again at every impact, where the run's start is paid once, so there the start's cost counts and not its
+     * error constant. */
+    const ButcherTableau *restarter;
 } AdamsBashforth;
 
 extern INTERNAL const ButcherTableau TABLEAU_EULER, TABLEAU_MIDPOINT, TABLEAU_HEUN, TABLEAU_RK3, TABLEAU_RK4,

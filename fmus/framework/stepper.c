@@ -19,6 +19,7 @@ void restart_integrator(Instance *inst)
     inst->s.integrator.step_proposal = 0.0;
     inst->s.integrator.gbs_columns = 0;
     inst->s.integrator.gbs_rejected = 0;
+    inst->s.integrator.ab_restarted = 0;
 }
 
 /* Input slopes drive a step only when set for it: those left from the last step (kept so that the
@@ -673,7 +674,7 @@ static Status step_with_events(Instance *inst, const char *function, RightHandSi
                       "step", function, H, solver_name(solver), e.h, work, MAX_EVALUATIONS_PER_CALL);
             return STATUS_ERROR;
         }
-        if (memory->ab_count > 0 && fabs(hs - memory->ab_step) > 1e-10 * hs) memory->ab_count = 0;
+        if (memory->ab_count > 0 && fabs(hs - memory->ab_step) > 1e-10 * hs) memory->ab_count = memory->ab_restarted = 0;
         memory->ab_step = hs;
     }
     /* An adaptive method's indicators are compared at each of its own steps (at most h long): a gap that closes
@@ -739,6 +740,7 @@ static Status step_with_events(Instance *inst, const char *function, RightHandSi
             ta += theta;
             *memory = m0;
             memory->ab_count = 0;
+            memory->ab_restarted = 1;
             if (!e.adaptive && theta > 0.0) memory->n_steps++; /* the step onto the event */
             memcpy(located, x, sizeof located);
             kept.valid = 0; /* the constraints acting may change */
@@ -951,7 +953,7 @@ Status step_to(Instance *inst, const char *function, double t, double H)
         n = substeps < 1.0 ? 1 : (int64_t)substeps;
         hs = H / (double)n;
         /* Adams-Bashforth history is only valid for the substep it was taken with. */
-        if (memory->ab_count > 0 && fabs(hs - memory->ab_step) > 1e-10 * hs) memory->ab_count = 0;
+        if (memory->ab_count > 0 && fabs(hs - memory->ab_step) > 1e-10 * hs) memory->ab_count = memory->ab_restarted = 0;
         memory->ab_step = hs;
         /* Blocks of CHECK_BLOCK substeps, each checked at its end: a failure is redone, checking every
          * substep, from the last good block only. */
@@ -974,7 +976,7 @@ Status step_to(Instance *inst, const char *function, double t, double H)
                 done = integrate_fixed(&f, solver, memory, x, t, hs, first, count, 1);
             }
             count_work(memory, &f);
-            memory->ab_count = 0;
+            memory->ab_count = memory->ab_restarted = 0;
             return fail(inst, function, t, first + done == n ? t + H : t + (double)(first + done) * hs, method, h,
                         f.unconverged);
         }
