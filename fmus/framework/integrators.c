@@ -233,10 +233,17 @@ ENGINE_INLINE int64_t adams_bashforth_loop(RightHandSide *f, int mode, const Ada
         f->evaluations++;
         if (m->ab_count < AB_MAX_STEPS) m->ab_count++;
         if (m->ab_count < ab->steps) {
-            const ButcherTableau *start = m->ab_restarted ? ab->restarter : ab->starter;
+            /* a call per tableau: on a tableau chosen at run time gcc -O2 -Wall cannot see that every stage
+             * summed was set, and warns */
+            const int restarting = m->ab_restarted;
             if (m->ab_count + 1 == ab->steps) m->ab_restarted = 0; /* the history is whole after this step */
-            runge_kutta_step(&e, mode, start, t, hs, x, newest, NULL);
-            f->evaluations += (uint64_t)(start->stages - 1);
+            if (restarting) {
+                runge_kutta_step(&e, mode, ab->restarter, t, hs, x, newest, NULL);
+                f->evaluations += (uint64_t)(ab->restarter->stages - 1);
+            } else {
+                runge_kutta_step(&e, mode, ab->starter, t, hs, x, newest, NULL);
+                f->evaluations += (uint64_t)(ab->starter->stages - 1);
+            }
         } else if (!ab->corrected) {
             UNROLL for (q = 0; q < N_STATES; q++) {
                 double sum = ab->beta[0] * newest[q];
