@@ -13,12 +13,13 @@ from pathlib import Path
 GRACE_SECONDS = 5.0  # after SIGTERM, before SIGKILL
 
 
-def run_program(command: Sequence[str], stdout=subprocess.PIPE, stderr=subprocess.PIPE) -> subprocess.CompletedProcess:
-    """Runs command to its end and returns what it printed (text). When the caller is interrupted
-    (Ctrl-C, SIGTERM, any exception) the program's whole process group is ended before the
-    interrupt goes on."""
+def run_program(command: Sequence[str], stdout=subprocess.PIPE, stderr=subprocess.PIPE, cwd: Path | None = None,
+                environment: dict[str, str] | None = None) -> subprocess.CompletedProcess:
+    """Runs command to its end (in cwd, with environment or this process's) and returns what it printed
+    (text). When the caller is interrupted (Ctrl-C, SIGTERM, a test's time-out, any exception) the program's
+    whole process group is ended before the interrupt goes on."""
     with tempfile.TemporaryDirectory(prefix="program-") as scratch:
-        process = _start(command, scratch, stdout, stderr)
+        process = _start(command, scratch, stdout, stderr, cwd, environment)
         try:
             out, err = process.communicate()
         except BaseException:
@@ -27,9 +28,11 @@ def run_program(command: Sequence[str], stdout=subprocess.PIPE, stderr=subproces
         return subprocess.CompletedProcess(list(command), process.returncode, out, err)
 
 
-def _start(command: Sequence[str], scratch: str, stdout, stderr) -> subprocess.Popen:
+def _start(command: Sequence[str], scratch: str, stdout, stderr, cwd: Path | None = None,
+           environment: dict[str, str] | None = None) -> subprocess.Popen:
     """The program in a process group of its own, its temporary files in scratch (gcc's cc*.s, cc*.o)."""
-    return subprocess.Popen(list(command), stdout=stdout, stderr=stderr, text=True, env=dict(os.environ, TMPDIR=scratch),
+    return subprocess.Popen(list(command), stdout=stdout, stderr=stderr, text=True, cwd=cwd,
+                            env=dict(os.environ if environment is None else environment, TMPDIR=scratch),
                             start_new_session=True)
 
 

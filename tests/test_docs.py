@@ -28,15 +28,14 @@ import os
 import re
 import shlex
 import shutil
-import subprocess
 import sys
-import tempfile
 import tomllib
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import pytest
 
+from harness.processes import run_program
 from harness.reference_pages import REFERENCE, stale_pages
 from harness.view.wasm import WASI_LIBC
 
@@ -113,14 +112,10 @@ def _run(block: Block, folder: Path) -> None:
         script = folder / f"block_{block.line}.py"
         script.write_text(block.text)
         command = [sys.executable, script.name]
-    # Some importers (ecos) extract into the temporary folder and leave it there: the block gets one that goes,
-    # short and in the system's (a browser puts its sockets there, and a socket's path has a length limit).
-    scratch = Path(tempfile.mkdtemp(prefix="block"))
-    try:
-        result = subprocess.run(command, cwd=folder, env={**_environment(), "TMPDIR": str(scratch)},
-                                capture_output=True, text=True, timeout=900)
-    finally:
-        shutil.rmtree(scratch, ignore_errors=True)
+    # In a process group of its own, which ends with the test (a time-out left a benchmark running for minutes), and
+    # with a temporary folder that goes: some importers (ecos) extract into it and leave it there; it is short and in
+    # the system's, as a browser puts its sockets there and a socket's path has a length limit.
+    result = run_program(command, cwd=folder, environment=_environment())
     assert result.returncode == 0, (f"{block.where}: exited with {result.returncode}\n{block.text}\n"
                                     f"{result.stdout[-2000:]}\n{result.stderr[-3000:]}")
 
