@@ -47,6 +47,7 @@ TAYLOR_ORDER = 12  # taylor's order on the cradle (orders 10 to 16 cost about th
 # The longest step of the methods that compare the gaps at step ends only (taylor, and scipy's solve_ivp): below
 # the 0.16 s a ball takes to pass through its neighbour, so that no impact falls between two comparisons.
 MAX_STEP = 0.1
+EVENT_BOUND = 16  # solve_ivp calls per period, which holds two impacts; an event that exchanged nothing recurs
 
 
 # ---------------------------------------------------------------- 1. the cost of an event
@@ -88,7 +89,7 @@ def scipy_cradle(rtol: float) -> np.ndarray:
         return gap
     events = [event(i) for i in range(4)]
     t, y = 0.0, np.array([-PHI0, 0, 0, 0, 0, 0, 0, 0, 0, 0], dtype=float)
-    for _ in range(16):  # a period holds two impacts of ball on row; an event that exchanged nothing would recur
+    for _ in range(EVENT_BOUND):
         solution = solve_ivp(rhs, (t, PERIOD), y, method="DOP853", rtol=rtol, atol=rtol, events=events,
                              max_step=MAX_STEP)
         t, y = solution.t[-1], solution.y[:, -1].copy()
@@ -102,8 +103,8 @@ def scipy_cradle(rtol: float) -> np.ndarray:
                 break
             i = approaching[0]
             y[5 + i], y[6 + i] = y[6 + i], y[5 + i]
-    raise RuntimeError(f"solve_ivp at rtol {rtol:g}: 16 events in one period of the cradle, which has two impacts; "
-                       f"stopped at t = {t:.6f} s")
+    raise RuntimeError(f"solve_ivp at rtol {rtol:g}: {EVENT_BOUND} events in one period of the cradle, which has two "
+                       f"impacts; stopped at t = {t:.6f} s")
 
 
 def fmu_cradle(fmu: FmuInstance, settings: dict) -> np.ndarray:
