@@ -160,7 +160,12 @@ static Status stopped_short(Instance *inst, const char *function, const RightHan
     const char *method = solver_name(solver);
     const double tol = inst->s.real[VR_tol];
     finish(inst, t, reached - t, reached);
-    if (f->out_of_budget)
+    if (f->out_of_budget && !(tol > 0.0)) /* a fixed-step method's event checks */
+        log_discard(inst, "%s: %s at h = %g used its %.0f right-hand-side evaluations allowed per call, with the "
+                    "checks for contacts inside its steps, at t = %.17g; stopped at the last successful time %.17g "
+                    "(take shorter communication steps)", function, method, inst->s.real[VR_h],
+                    MAX_EVALUATIONS_PER_CALL, reached, reached);
+    else if (f->out_of_budget)
         log_discard(inst, "%s: %s with tol = %g used its %.0f right-hand-side evaluations "
                     "allowed per call at t = %.17g; stopped at the last successful time %.17g (take shorter "
                     "communication steps or a larger tol)", function, method, tol, MAX_EVALUATIONS_PER_CALL,
@@ -591,6 +596,12 @@ static double dip_within(EventStepper *e, const IntegratorMemory *memory, const 
             double xt[STATE_SLOTS], zt[N_CONSTRAINTS], gt[N_CONSTRAINTS], rt[N_CONSTRAINTS];
             int any = 0;
             if (!(meet > a && meet < b) || !(ga + ra * (meet - a) < -GAP_ROUNDING)) break;
+            if (!e->adaptive && e->f->evaluations + e->f->checks + (uint64_t)evaluations_needed(e->solver, 0, 1.0, e->f) >
+                                    e->f->budget) { /* a fixed-step method's trials, within the call's bound */
+                e->f->out_of_budget = 1;
+                e->short_of = 1;
+                return 0.0;
+            }
             trial_step(e, memory, x0, t, meet, xt);
             if (e->short_of) return 0.0;
             indicators_at(e, t + meet, xt, zt);
@@ -622,6 +633,14 @@ static double dip_within(EventStepper *e, const IntegratorMemory *memory, const 
 
 /* An adaptive method stopped short inside a substep with events: the state and the integrator memory go back to
  * where they were at ta (x0, m0), and the call ends there. */
+/* The history an Adams step that crossed (not its starter's) takes its trial steps from, on its polynomial; NULL
+ * for the other methods. */
+static const IntegratorMemory *adams_history(const EventStepper *e, const IntegratorMemory *memory)
+{
+    const AdamsBashforth *ab = e->adaptive ? NULL : adams_bashforth_of(e->solver);
+    return ab && memory->ab_count >= ab->steps ? memory : NULL;
+}
+
 static Status stopped_at(Instance *inst, const char *function, RightHandSide *f, int solver, double t, double ta,
                          double *x, const double *x0, IntegratorMemory *memory, const IntegratorMemory *m0)
 {
@@ -712,9 +731,11 @@ static Status step_with_events(Instance *inst, const char *function, RightHandSi
         }
         indicators_at(&e, tb, x, z1);
         for (any = 0, k = 0; k < N_CONSTRAINTS; k++) any |= crossed(&e, k, z0[k], z1[k]);
-        if (!any && e.adaptive) { /* an adaptive step grows to h: a contact may close and open again inside it */
-            const double dip = dip_within(&e, &m0, x0, ta, tb - ta, z0, reuse && rates_known ? rates : NULL, x, z1,
-                                          rates);
+        if (!any) { /* a contact may close and open again inside the step */
+            double dip;
+            e.history = adams_history(&e, memory);
+            dip = dip_within(&e, &m0, x0, ta, tb - ta, z0, reuse && rates_known ? rates : NULL, x, z1, rates);
+            e.history = NULL;
             rates_known = dip == 0.0;
             if (e.short_of) return stopped_at(inst, function, f, solver, t, ta, x, x0, memory, &m0);
             if (dip > 0.0) {
@@ -728,10 +749,7 @@ static Status step_with_events(Instance *inst, const char *function, RightHandSi
             double located[STATE_SLOTS], theta;
             const int32_t active_before = s->active_constraints;
             memcpy(located, x, sizeof located); /* the step's end, past the event */
-            /* an Adams step that crossed (not its starter's): trial steps on its polynomial */
-            e.history = !e.adaptive && adams_bashforth_of(solver) &&
-                                memory->ab_count >= adams_bashforth_of(solver)->steps
-                            ? memory : NULL;
+            e.history = adams_history(&e, memory);
             theta = locate_event(&e, &m0, x0, ta, tb - ta, z0, located, x);
             e.history = NULL;
             if (e.short_of) { /* a trial step stopped short: the event is not located; back to the step's start */
