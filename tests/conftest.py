@@ -1,7 +1,10 @@
 from __future__ import annotations
 
+import os
+import shutil
 import subprocess
 import sys
+import tempfile
 from pathlib import Path
 
 import pytest
@@ -31,6 +34,33 @@ def pytest_configure(config) -> None:
 def pytest_collection_modifyitems(session, config, items) -> None:
     rank = {name: k for k, name in enumerate(LONGEST_FILES)}
     items.sort(key=lambda item: rank.get(item.path.name, len(rank)))  # stable: the others keep their order
+
+
+@pytest.fixture(scope="session", autouse=True)
+def temporary_files():
+    """What the test process puts in the temporary folder goes with it: fmpy's simulate_fmu leaves its FMU's
+    extraction behind when the run raises, which many tests provoke on purpose. (Short: sockets are made there.)"""
+    folder = tempfile.mkdtemp(prefix="pendulum-tests-")
+    before, tempfile.tempdir = tempfile.tempdir, folder
+    yield folder
+    tempfile.tempdir = before
+    shutil.rmtree(folder, ignore_errors=True)
+
+
+@pytest.fixture(scope="session", autouse=True)
+def wasm_cache(tmp_path_factory):
+    """The live view's modules, kept for this test run (its workers and the commands they start share them)
+    rather than in the user's cache: a module is compiled once per run, not once per scene and page."""
+    run = os.environ.get("PYTEST_XDIST_TESTRUNUID")
+    base = tmp_path_factory.getbasetemp()
+    folder = base.parent / f"wasm-cache-{run}" if run else base / "wasm-cache"
+    before = os.environ.get("PENDULUM_WASM_CACHE")
+    os.environ["PENDULUM_WASM_CACHE"] = str(folder)
+    yield folder
+    if before is None:
+        del os.environ["PENDULUM_WASM_CACHE"]
+    else:
+        os.environ["PENDULUM_WASM_CACHE"] = before
 
 
 @pytest.fixture

@@ -134,6 +134,24 @@ def test_the_proof_finds_an_fmu_that_does_not_follow_its_object_file(tmp_path):
     assert 1e-4 < deviation < 1e-1
 
 
+def test_a_failing_model_exchange_proof_says_so_and_leaves_no_files(fmu_paths, monkeypatch):
+    """fmpy's simulate_fmu leaves the FMU it extracted behind where the run raises: the proof extracts it
+    itself and removes it either way."""
+    import tempfile
+    import fmpy
+    from harness.objects.proof import model_exchange_with_cvode
+
+    def failing(filename, **settings):  # as fmpy's does: an archive is extracted, and the folder stays on an error
+        if not os.path.isdir(filename):
+            fmpy.extract(filename)
+        raise Exception("fmi2NewDiscreteStates failed with status 3 (error).\nsecond line")
+    monkeypatch.setattr(fmpy, "simulate_fmu", failing)
+    before = set(os.listdir(tempfile.gettempdir()))
+    proof = model_exchange_with_cvode(fmu_paths["SimplePendulum"], read_object_file(object_file("SimplePendulum")))
+    assert not proof.passed and proof.detail == "fmpy's CVode failed: fmi2NewDiscreteStates failed with status 3 (error)."
+    assert set(os.listdir(tempfile.gettempdir())) == before
+
+
 def test_the_order_check_tells_a_wrong_order_from_a_right_one():
     steps = [0.1 / 2 ** k for k in range(6)]
     fourth = [3.0 * h ** 4 for h in steps]

@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import ctypes
 import math
+import shutil
 import zipfile
 from dataclasses import dataclass
 from pathlib import Path
@@ -24,6 +25,7 @@ from pathlib import Path
 import numpy as np
 import sympy as sp
 
+from harness.archives import extract_fmu
 from harness.errors import HarnessError
 from harness.fmi.fmu_instance import OK, FmuInstance, accepted_methods, read_description
 from harness.fmi.methods import ADAPTIVE, COUNTER_NAMES, METHODS, VARIABLE_ORDER, fixed_step_settings
@@ -305,12 +307,15 @@ def model_exchange_with_cvode(fmu: Path, spec: ObjectSpec) -> Proof:
         h = default_step(instance)
         duration = RUN_STEPS * h
         reference, _, _ = _run(instance, spec, duration, solver="nystrom5", h=h / 16)
+    unzipped = extract_fmu(Path(fmu))  # fmpy's own extraction stays behind where the run raises
     try:
-        result = simulate_fmu(str(fmu), fmi_type="ModelExchange", solver="CVode", stop_time=duration,
+        result = simulate_fmu(str(unzipped), fmi_type="ModelExchange", solver="CVode", stop_time=duration,
                               relative_tolerance=1e-10, output_interval=duration / 16, start_values={"d": 0.0},
                               output=names)
     except Exception as error:  # fmpy raises plain exceptions for a failing FMU call
         return Proof("Model Exchange with CVode", False, f"fmpy's CVode failed: {str(error).splitlines()[0]}")
+    finally:
+        shutil.rmtree(unzipped, ignore_errors=True)
     final = np.array([result[name][-1] for name in names])
     deviation = float(np.max(np.abs(final - reference))) / (1.0 + float(np.max(np.abs(reference))))
     passed = bool(np.all(np.isfinite(final))) and math.isclose(result["time"][-1], duration) and deviation < 1e-6
