@@ -470,3 +470,50 @@ def _compilers_in(scratch: Path) -> list[str]:
         except OSError:
             continue
     return found
+
+
+# ---------------------------------------------------------------- the modules' cache
+
+def test_a_module_is_built_once_and_then_taken_from_the_cache(fmu_paths, tmp_path, monkeypatch):
+    """The live view's modules are kept under the name of what went into them: the same FMU again compiles
+    nothing and gives the same bytes; an entry that is no module is built again and replaced; an empty
+    PENDULUM_WASM_CACHE keeps none."""
+    needs_wasm_tools()
+    from harness.view import wasm
+    cache = tmp_path / "cache"
+    monkeypatch.setenv("PENDULUM_WASM_CACHE", str(cache))
+    compiled, compile_all = [], wasm.run_programs
+
+    def counting(commands, parallel):
+        compiled.extend(commands)
+        return compile_all(commands, parallel)
+    monkeypatch.setattr(wasm, "run_programs", counting)
+    fmu = fmu_paths["SimplePendulum"]
+    first = wasm.build_modules([fmu])[fmu]
+    assert first.startswith(b"\0asm") and len(compiled) == 1
+    [entry] = cache.glob("*.wasm")
+    assert entry.read_bytes() == first
+    assert wasm.build_modules([fmu, fmu_paths["SimplePendulum"]])[fmu] == first and len(compiled) == 1
+    entry.write_bytes(b"half a modu")
+    assert wasm.build_modules([fmu])[fmu] == first and len(compiled) == 2  # the same inputs, the same bytes
+    assert entry.read_bytes() == first and sorted(cache.iterdir()) == [entry]  # no part file left
+    monkeypatch.setenv("PENDULUM_WASM_CACHE", "")
+    assert wasm.build_modules([fmu])[fmu] == first and len(compiled) == 3
+
+
+def test_the_cache_key_is_every_byte_that_goes_into_a_module(tmp_path):
+    """Where the work folder lies does not count; the compiler's version, a flag and a header's byte do."""
+    from harness.view.wasm import module_key
+    work, moved = tmp_path / "work", tmp_path / "elsewhere"
+    (work / "sources").mkdir(parents=True)
+    (work / "sources" / "model.c").write_text('#include "model.h"\nint n = N;\n')
+    (work / "sources" / "model.h").write_text("#define N 1\n")
+    command = ["clang", "-O3", f"-I{work / 'sources'}", str(work / "sources" / "model.c"), "-o",
+               str(work / "module.wasm")]
+    key = module_key("clang version 14.0.6", command, work)
+    shutil.copytree(work, moved)
+    assert module_key("clang version 14.0.6", [c.replace(str(work), str(moved)) for c in command], moved) == key
+    assert module_key("clang version 15.0.7", command, work) != key
+    assert module_key("clang version 14.0.6", [command[0], "-O2", *command[2:]], work) != key
+    (work / "sources" / "model.h").write_text("#define N 2\n")
+    assert module_key("clang version 14.0.6", command, work) != key

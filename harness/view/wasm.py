@@ -1,10 +1,16 @@
 """An FMU's C sources built to a WebAssembly module for the live view: the sources the FMU carries
 (its model description lists them), with the importer's callbacks (web/importer.c) beside them,
 compiled by clang for wasm32-wasi with the flags of web/wasm.flags, which the CMake build uses too.
-So any FMU this project makes, a user's derived object included, runs in the page."""
+So any FMU this project makes, a user's derived object included, runs in the page. A module built once is
+kept in a cache under the name of what went into it (the sources' bytes, the flags, the compiler's version):
+the same FMU in another scene or another run takes it from there."""
 from __future__ import annotations
 
+import hashlib
+import os
 import shutil
+import subprocess
+import tempfile
 from contextlib import ExitStack
 from pathlib import Path
 from xml.etree import ElementTree
@@ -20,6 +26,8 @@ WASI_LIBC = Path("/usr/lib/wasm32-wasi/libc.a")
 MISSING_TOOLS = ("the live view builds the FMUs' WebAssembly modules with clang for wasm32-wasi and Debian's "
                  "wasi-libc: install clang, lld, wasi-libc and libclang-rt-14-dev-wasm32 (./run does, as root)")
 PARALLEL_BUILDS = 4
+CACHED_MODULES = 64  # the cache's bound: the modules used longest ago go first
+WASM_MAGIC = b"\0asm"
 
 
 def wasm_flags() -> list[str]:
@@ -62,19 +70,79 @@ def _prepared(fmu: Path, work: Path, clang: str) -> list[str]:
             "-o", str(work / "module.wasm")]
 
 
+def cache_folder() -> Path | None:
+    """Where built modules are kept: $PENDULUM_WASM_CACHE (empty: nowhere), else the user's cache folder."""
+    configured = os.environ.get("PENDULUM_WASM_CACHE")
+    if configured is not None:
+        return Path(configured) if configured else None
+    return Path(os.environ.get("XDG_CACHE_HOME") or Path.home() / ".cache") / "pendulum-fmus" / "wasm"
+
+
+def module_key(compiler: str, command: list[str], work: Path) -> str:
+    """The name of a module in the cache: every byte that goes into it (the compiler's version, the flags, each
+    file of the FMU's sources and the importer's), not the work folder's path."""
+    digest = hashlib.sha256()
+    places = (str(work), str(WEB / "importer.c"))
+    for part in (compiler, *(word for word in command[1:] if not any(place in word for place in places))):
+        digest.update(part.encode() + b"\0")
+    for path in sorted(p for p in (work / "sources").rglob("*") if p.is_file()):
+        digest.update(str(path.relative_to(work)).encode() + b"\0" + path.read_bytes() + b"\0")
+    digest.update((WEB / "importer.c").read_bytes())
+    return digest.hexdigest()
+
+
+def _cached(folder: Path | None, key: str) -> bytes | None:
+    if folder is None:
+        return None
+    try:
+        module = (folder / f"{key}.wasm").read_bytes()
+        os.utime(folder / f"{key}.wasm")  # used now: the last to go
+    except OSError:
+        return None
+    return module if module.startswith(WASM_MAGIC) else None  # anything else is built again
+
+
+def _keep(folder: Path | None, key: str, module: bytes) -> None:
+    """Into the cache, whole or not at all (another process may read it at once); a cache that cannot be
+    written is no error: the module was built."""
+    if folder is None:
+        return
+    part = None
+    try:
+        folder.mkdir(parents=True, exist_ok=True)
+        handle, part = tempfile.mkstemp(dir=folder, prefix=f".{key}-", suffix=".part")
+        with os.fdopen(handle, "wb") as sink:
+            sink.write(module)
+        os.replace(part, folder / f"{key}.wasm")
+        part = None
+        kept = sorted(folder.glob("*.wasm"), key=lambda p: p.stat().st_mtime)
+        for old in kept[:max(0, len(kept) - CACHED_MODULES)]:
+            old.unlink(missing_ok=True)
+    except OSError:
+        pass
+    finally:
+        if part is not None:
+            Path(part).unlink(missing_ok=True)
+
+
 def build_modules(fmus: list[Path]) -> dict[Path, bytes]:
-    """Each FMU's module, compiled side by side; an interrupt ends every compiler still running, and
-    the work folders go in any case."""
+    """Each FMU's module, from the cache or compiled side by side; an interrupt ends every compiler still
+    running, and the work folders go in any case."""
     clang = check_tools()
+    compiler = subprocess.run([clang, "--version"], capture_output=True, text=True).stdout
+    cache = cache_folder()
     with ExitStack() as stack:
         works = [stack.enter_context(scratch_folder("wasm-")) for _ in fmus]
         commands = [_prepared(fmu, work, clang) for fmu, work in zip(fmus, works)]
-        modules = {}
-        for fmu, work, result in zip(fmus, works, run_programs(commands, PARALLEL_BUILDS)):
-            module = work / "module.wasm"
+        keys = [module_key(compiler, command, work) for command, work in zip(commands, works)]
+        modules = {fmu: module for fmu, key in zip(fmus, keys) if (module := _cached(cache, key)) is not None}
+        built = [k for k, fmu in enumerate(fmus) if fmu not in modules]
+        for k, result in zip(built, run_programs([commands[k] for k in built], PARALLEL_BUILDS)):
+            module = works[k] / "module.wasm"
             if result.returncode != 0 or not module.is_file():
                 first = next((line for line in result.stderr.splitlines() if "error" in line),
                              result.stderr.strip()[:300])
-                raise HarnessError(f"{fmu}: its sources do not build for WebAssembly: {first}")
-            modules[fmu] = module.read_bytes()
+                raise HarnessError(f"{fmus[k]}: its sources do not build for WebAssembly: {first}")
+            modules[fmus[k]] = module.read_bytes()
+            _keep(cache, keys[k], modules[fmus[k]])
         return modules
