@@ -29,6 +29,7 @@ import re
 import shlex
 import shutil
 import sys
+import time
 import tomllib
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -67,6 +68,7 @@ class Block:
     attributes: dict[str, str]
     text: str
     markers: list[str] = field(default_factory=list)
+    seconds: float = 0.0  # what running it took (a command another page ran before takes none)
 
     @property
     def where(self) -> str:
@@ -115,7 +117,9 @@ def _run(block: Block, folder: Path) -> None:
     # In a process group of its own, which ends with the test (a time-out left a benchmark running for minutes), and
     # with a temporary folder that goes: some importers (ecos) extract into it and leave it there; it is short and in
     # the system's, as a browser puts its sockets there and a socket's path has a length limit.
+    began = time.perf_counter()
     result = run_program(command, cwd=folder, environment=_environment())
+    block.seconds += time.perf_counter() - began
     assert result.returncode == 0, (f"{block.where}: exited with {result.returncode}\n{block.text}\n"
                                     f"{result.stdout[-2000:]}\n{result.stderr[-3000:]}")
 
@@ -157,14 +161,17 @@ def _run_once(block: Block, folder: Path, ran: Path | None) -> None:
         with open(ran / f"{name}.lock", "w") as lock:
             fcntl.flock(lock, fcntl.LOCK_EX)
             if not (ran / f"{name}.passed").exists():
-                _run(Block(block.page, block.line, block.language, block.attributes, line + "\n"), folder)
+                command = Block(block.page, block.line, block.language, block.attributes, line + "\n")
+                _run(command, folder)
+                block.seconds += command.seconds
                 (ran / f"{name}.passed").write_text(f"{block.where}: {line}\n")
 
 
-def run_page(page: Path, folder: Path, ran: Path | None = None) -> None:
+def run_page(page: Path, folder: Path, ran: Path | None = None, record=None) -> None:
     """Runs the page's blocks in order in `folder`, as its reader would; skips (after the rest ran) the
     blocks whose needs this machine lacks, naming them. `ran`: where passed harness commands are noted
-    (`ran_commands`)."""
+    (`ran_commands`); `record`: pytest's record_property, which gets each block's seconds (in --junitxml's
+    report: where the suite's time goes)."""
     _workspace(folder)
     ran_before, ran, skipped = ran, 0, []
     for block in code_blocks(page):
@@ -190,6 +197,8 @@ def run_page(page: Path, folder: Path, ran: Path | None = None) -> None:
             block.text = "".join(f"{line} {settings['adds']}\n" if line.strip() else "\n"
                                  for line in block.text.splitlines())
         _run_once(block, folder, ran_before)
+        if record is not None:
+            record(f"{block.where} seconds", round(block.seconds, 1))
         ran += 1
     if page == ROOT / "README.md":
         assert ran + len(skipped) >= 8  # the common tasks
@@ -203,8 +212,8 @@ MEASUREMENT_PAGES = sorted((ROOT / "docs" / "explanation").glob("*.md"))
 
 
 @pytest.mark.parametrize("page", [p for p in PAGES if p not in MEASUREMENT_PAGES], ids=_page_id)
-def test_every_block_of_the_page_runs(page, tmp_path, tmp_path_factory):
-    run_page(page, tmp_path, ran_commands(tmp_path_factory))
+def test_every_block_of_the_page_runs(page, tmp_path, tmp_path_factory, record_property):
+    run_page(page, tmp_path, ran_commands(tmp_path_factory), record_property)
 
 
 def test_the_quick_start_is_what_the_tests_run():

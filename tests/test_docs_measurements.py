@@ -8,5 +8,5 @@ from test_docs import MEASUREMENT_PAGES, ROOT, ran_commands, run_page
 
 
 @pytest.mark.parametrize("page", MEASUREMENT_PAGES, ids=lambda p: str(p.relative_to(ROOT)))
-def test_every_block_of_the_explanation_page_runs(page, tmp_path, tmp_path_factory):
-    run_page(page, tmp_path, ran_commands(tmp_path_factory))
+def test_every_block_of_the_explanation_page_runs(page, tmp_path, tmp_path_factory, record_property):
+    run_page(page, tmp_path, ran_commands(tmp_path_factory), record_property)
