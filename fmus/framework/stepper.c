@@ -152,7 +152,13 @@ static Status fail(Instance *inst, const char *function, double t, double t_good
     return STATUS_DISCARD;
 }
 
-/* An adaptive method that stopped short of its step (out of budget, or its step underflowed) at `reached`: the
+/* Whether the method picks its own steps (at most h long) to meet tol. */
+static int adaptive_method(int solver, double tol)
+{
+    return solver == SOLVER_RKF45 || ((solver == SOLVER_GBS || solver == SOLVER_TAYLOR) && tol > 0.0);
+}
+
+/* A method that stopped short of its step (out of budget, or an adaptive step underflowed) at `reached`: the
  * call ends there, with the reason. */
 static Status stopped_short(Instance *inst, const char *function, const RightHandSide *f, int solver, double t,
                             double reached)
@@ -160,7 +166,7 @@ static Status stopped_short(Instance *inst, const char *function, const RightHan
     const char *method = solver_name(solver);
     const double tol = inst->s.real[VR_tol];
     finish(inst, t, reached - t, reached);
-    if (f->out_of_budget && !(tol > 0.0)) /* a fixed-step method's event checks */
+    if (f->out_of_budget && !adaptive_method(solver, tol)) /* a fixed-step method's checks for contacts inside its steps */
         log_discard(inst, "%s: %s at h = %g used its %.0f right-hand-side evaluations allowed per call, with the "
                     "checks for contacts inside its steps, at t = %.17g; stopped at the last successful time %.17g "
                     "(take shorter communication steps)", function, method, inst->s.real[VR_h],
@@ -673,7 +679,7 @@ static Status step_with_events(Instance *inst, const char *function, RightHandSi
     e.history = NULL;
     kept.valid = 0;
     f->kept_jacobian = &kept;
-    e.adaptive = solver == SOLVER_RKF45 || ((solver == SOLVER_GBS || solver == SOLVER_TAYLOR) && e.tol > 0.0);
+    e.adaptive = adaptive_method(solver, e.tol);
     {
         char message[512];
         if (free_motion_refused(solver, s->active_constraints, "at", t, message, sizeof message)) {
@@ -709,6 +715,7 @@ static Status step_with_events(Instance *inst, const char *function, RightHandSi
         uint64_t events_seen = memory->n_events;
         int32_t active_seen = s->active_constraints;
         int any, k, stalls = 0, remainder = 0;
+        double step_end; /* a fixed-step method's step ends here, whatever it finds inside */
         memcpy(x0, x, sizeof x0);
         start_of_step(&e, ta, x0, z0, reuse ? z1 : NULL);
         if (e.adaptive) {
@@ -730,6 +737,7 @@ static Status step_with_events(Instance *inst, const char *function, RightHandSi
             return fail(inst, function, t, ta, solver_name(solver), e.h, f->unconverged);
         }
         indicators_at(&e, tb, x, z1);
+        step_end = tb;
         for (any = 0, k = 0; k < N_CONSTRAINTS; k++) any |= crossed(&e, k, z0[k], z1[k]);
         if (!any) { /* a contact may close and open again inside the step */
             double dip;
@@ -752,6 +760,7 @@ static Status step_with_events(Instance *inst, const char *function, RightHandSi
             e.history = adams_history(&e, memory);
             theta = locate_event(&e, &m0, x0, ta, tb - ta, z0, located, x);
             e.history = NULL;
+            if (!e.adaptive) tb = step_end; /* a dip was searched up to where the tangents met: the rest goes on */
             if (e.short_of) { /* a trial step stopped short: the event is not located; back to the step's start */
                 return stopped_at(inst, function, f, solver, t, ta, x, x0, memory, &m0);
             }
@@ -923,7 +932,7 @@ Status step_to(Instance *inst, const char *function, double t, double H)
 #if N_CONSTRAINTS > 0
     return step_with_events(inst, function, &f, solver, t, H);
 #endif
-    if (solver == SOLVER_RKF45 || ((solver == SOLVER_GBS || solver == SOLVER_TAYLOR) && s->real[VR_tol] > 0.0)) {
+    if (adaptive_method(solver, s->real[VR_tol])) {
         const double t_end = t + H;
         double x_start[STATE_SLOTS];
         IntegratorMemory memory_start = *memory;
