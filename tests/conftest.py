@@ -37,9 +37,11 @@ def pytest_collection_modifyitems(session, config, items) -> None:
 
 
 @pytest.fixture(scope="session", autouse=True)
-def temporary_files():
+def temporary_files(tmp_path_factory):
     """What the test process puts in the temporary folder goes with it: fmpy's simulate_fmu leaves its FMU's
-    extraction behind when the run raises, which many tests provoke on purpose. (Short: sockets are made there.)"""
+    extraction behind when the run raises, which many tests provoke on purpose. (Short: sockets are made there.
+    pytest's own folder is fixed first, so that it stays where it is, and a failed test's files with it.)"""
+    tmp_path_factory.getbasetemp()
     folder = tempfile.mkdtemp(prefix="pendulum-tests-")
     before, tempfile.tempdir = tempfile.tempdir, folder
     yield folder

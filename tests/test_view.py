@@ -502,18 +502,21 @@ def test_a_module_is_built_once_and_then_taken_from_the_cache(fmu_paths, tmp_pat
 
 
 def test_the_cache_key_is_every_byte_that_goes_into_a_module(tmp_path):
-    """Where the work folder lies does not count; the compiler's version, a flag and a header's byte do."""
+    """Where the work folder lies does not count; the compiler's identity, a flag, which files are compiled and a
+    header's byte do."""
     from harness.view.wasm import module_key
     work, moved = tmp_path / "work", tmp_path / "elsewhere"
     (work / "sources").mkdir(parents=True)
     (work / "sources" / "model.c").write_text('#include "model.h"\nint n = N;\n')
     (work / "sources" / "model.h").write_text("#define N 1\n")
-    command = ["clang", "-O3", f"-I{work / 'sources'}", str(work / "sources" / "model.c"), "-o",
-               str(work / "module.wasm")]
+    (work / "sources" / "extra.c").write_text("int m;\n")
+    command = ["clang", "-O3", f"-I{work / 'sources'}", str(work / "sources" / "model.c"),
+               str(work / "sources" / "extra.c"), "-o", str(work / "module.wasm")]
     key = module_key("clang version 14.0.6", command, work)
     shutil.copytree(work, moved)
     assert module_key("clang version 14.0.6", [c.replace(str(work), str(moved)) for c in command], moved) == key
     assert module_key("clang version 15.0.7", command, work) != key
     assert module_key("clang version 14.0.6", [command[0], "-O2", *command[2:]], work) != key
+    assert module_key("clang version 14.0.6", [*command[:4], *command[5:]], work) != key  # extra.c not compiled
     (work / "sources" / "model.h").write_text("#define N 2\n")
     assert module_key("clang version 14.0.6", command, work) != key

@@ -2,8 +2,8 @@
 (its model description lists them), with the importer's callbacks (web/importer.c) beside them,
 compiled by clang for wasm32-wasi with the flags of web/wasm.flags, which the CMake build uses too.
 So any FMU this project makes, a user's derived object included, runs in the page. A module built once is
-kept in a cache under the name of what went into it (the sources' bytes, the flags, the compiler's version):
-the same FMU in another scene or another run takes it from there."""
+kept in a cache under the name of what went into it (the sources' bytes, the command, the compiler and the
+libraries it links): the same FMU in another scene or another run takes it from there."""
 from __future__ import annotations
 
 import hashlib
@@ -78,12 +78,28 @@ def cache_folder() -> Path | None:
     return Path(os.environ.get("XDG_CACHE_HOME") or Path.home() / ".cache") / "pendulum-fmus" / "wasm"
 
 
-def module_key(compiler: str, command: list[str], work: Path) -> str:
-    """The name of a module in the cache: every byte that goes into it (the compiler's version, the flags, each
-    file of the FMU's sources and the importer's), not the work folder's path."""
+def compiler_identity(clang: str) -> str:
+    """The compiler's version and a digest of the libraries every module links (wasi-libc, clang's builtins):
+    an upgrade of either that keeps the version builds the modules again."""
+    version = subprocess.run([clang, "--version"], capture_output=True, text=True).stdout
+    builtins = subprocess.run([clang, "--target=wasm32-wasi", "-print-libgcc-file-name"], capture_output=True,
+                              text=True).stdout.strip()
     digest = hashlib.sha256()
-    places = (str(work), str(WEB / "importer.c"))
-    for part in (compiler, *(word for word in command[1:] if not any(place in word for place in places))):
+    for library in (WASI_LIBC, Path(builtins)):
+        try:
+            digest.update(library.read_bytes())
+        except OSError:  # not found: the compile says so
+            digest.update(b"missing")
+    return f"{version}\n{digest.hexdigest()}"
+
+
+def module_key(compiler: str, command: list[str], work: Path) -> str:
+    """The name of a module in the cache: what goes into it (the compiler's identity, the command with the
+    files it names in their order, each file of the FMU's sources and the importer's), with the work folder's
+    path and the project's replaced by a placeholder, so that neither where the work is done nor the clone
+    counts."""
+    digest = hashlib.sha256()
+    for part in (compiler, *(word.replace(str(work), "<work>").replace(str(WEB), "<web>") for word in command[1:])):
         digest.update(part.encode() + b"\0")
     for path in sorted(p for p in (work / "sources").rglob("*") if p.is_file()):
         digest.update(str(path.relative_to(work)).encode() + b"\0" + path.read_bytes() + b"\0")
@@ -129,7 +145,7 @@ def build_modules(fmus: list[Path]) -> dict[Path, bytes]:
     """Each FMU's module, from the cache or compiled side by side; an interrupt ends every compiler still
     running, and the work folders go in any case."""
     clang = check_tools()
-    compiler = subprocess.run([clang, "--version"], capture_output=True, text=True).stdout
+    compiler = compiler_identity(clang)
     cache = cache_folder()
     with ExitStack() as stack:
         works = [stack.enter_context(scratch_folder("wasm-")) for _ in fmus]
