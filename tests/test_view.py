@@ -440,7 +440,8 @@ def test_an_interrupted_view_ends_its_compilers_and_leaves_nothing(tmp_path):
     needs_wasm_tools()
     scratch = tmp_path / "tmp"
     scratch.mkdir()
-    environment = dict(os.environ, TMPDIR=str(scratch))
+    cache = tmp_path / "cache"  # empty: the modules are compiled (the run's own cache has them)
+    environment = dict(os.environ, TMPDIR=str(scratch), PENDULUM_WASM_CACHE=str(cache))
     # SIGINT as a terminal delivers it: a test worker may run with it ignored, which its children inherit
     process = subprocess.Popen([sys.executable, "-m", "harness", "view", str(SCENES / "thesis_scene.json"), "--out",
                                 str(tmp_path / "out")], env=environment, cwd=PROJECT_ROOT,
@@ -458,6 +459,7 @@ def test_an_interrupted_view_ends_its_compilers_and_leaves_nothing(tmp_path):
     assert not _compilers_in(scratch)  # every clang ended with the harness, not after it
     assert list(scratch.iterdir()) == []  # its work folders removed
     assert not (tmp_path / "out").exists()
+    assert not list(cache.glob(".*.part"))  # no half-written module in the cache
 
 
 def _compilers_in(scratch: Path) -> list[str]:
