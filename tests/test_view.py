@@ -522,3 +522,18 @@ def test_the_cache_key_is_every_byte_that_goes_into_a_module(tmp_path):
     assert module_key("clang version 14.0.6", [*command[:4], *command[5:]], work) != key  # extra.c not compiled
     (work / "sources" / "model.h").write_text("#define N 2\n")
     assert module_key("clang version 14.0.6", command, work) != key
+
+
+def test_the_cache_keeps_the_modules_used_last(tmp_path, monkeypatch):
+    """Past its bound the cache lets go of the module used longest ago; reading a module counts as a use."""
+    from harness.view import wasm
+    monkeypatch.setattr(wasm, "CACHED_MODULES", 2)
+    module = wasm.WASM_MAGIC + b"\x01\0\0\0"
+    for k, key in enumerate(("a", "b")):
+        wasm._keep(tmp_path, key, module)
+        os.utime(tmp_path / f"{key}.wasm", (1000.0 + k, 1000.0 + k))
+    assert wasm._cached(tmp_path, "a") == module  # a is now the one used last
+    wasm._keep(tmp_path, "c", module)
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["a.wasm", "c.wasm"]
+    (tmp_path / "c.wasm").write_bytes(b"<html>")
+    assert wasm._cached(tmp_path, "c") is None and wasm._cached(tmp_path, "missing") is None
