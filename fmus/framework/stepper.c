@@ -166,7 +166,7 @@ static Status stopped_short(Instance *inst, const char *function, const RightHan
     const char *method = solver_name(solver);
     const double tol = inst->s.real[VR_tol];
     finish(inst, t, reached - t, reached);
-    if (f->out_of_budget && !adaptive_method(solver, tol)) /* a fixed-step method's checks for contacts inside its steps */
+    if (f->out_of_budget && !adaptive_method(solver, tol)) /* a fixed-step method's checks for contacts inside */
         log_discard(inst, "%s: %s at h = %g used its %.0f right-hand-side evaluations allowed per call, with the "
                     "checks for contacts inside its steps, at t = %.17g; stopped at the last successful time %.17g "
                     "(take shorter communication steps)", function, method, inst->s.real[VR_h],
@@ -602,8 +602,9 @@ static double dip_within(EventStepper *e, const IntegratorMemory *memory, const 
             double xt[STATE_SLOTS], zt[N_CONSTRAINTS], gt[N_CONSTRAINTS], rt[N_CONSTRAINTS];
             int any = 0;
             if (!(meet > a && meet < b) || !(ga + ra * (meet - a) < -GAP_ROUNDING)) break;
-            if (!e->adaptive && e->f->evaluations + e->f->checks + (uint64_t)evaluations_needed(e->solver, 0, 1.0, e->f) >
-                                    e->f->budget) { /* a fixed-step method's trials, within the call's bound */
+            /* a fixed-step method's trials stay within the call's bound (an adaptive one's pass checks its own) */
+            if (!e->adaptive &&
+                e->f->evaluations + e->f->checks + (uint64_t)evaluations_needed(e->solver, 0, 1.0, e->f) > e->f->budget) {
                 e->f->out_of_budget = 1;
                 e->short_of = 1;
                 return 0.0;
@@ -637,8 +638,6 @@ static double dip_within(EventStepper *e, const IntegratorMemory *memory, const 
     return best;
 }
 
-/* An adaptive method stopped short inside a substep with events: the state and the integrator memory go back to
- * where they were at ta (x0, m0), and the call ends there. */
 /* The history an Adams step that crossed (not its starter's) takes its trial steps from, on its polynomial; NULL
  * for the other methods. */
 static const IntegratorMemory *adams_history(const EventStepper *e, const IntegratorMemory *memory)
@@ -647,6 +646,8 @@ static const IntegratorMemory *adams_history(const EventStepper *e, const Integr
     return ab && memory->ab_count >= ab->steps ? memory : NULL;
 }
 
+/* A method stopped short inside a substep with events: the state and the integrator memory go back to where they
+ * were at ta (x0, m0), and the call ends there. */
 static Status stopped_at(Instance *inst, const char *function, RightHandSide *f, int solver, double t, double ta,
                          double *x, const double *x0, IntegratorMemory *memory, const IntegratorMemory *m0)
 {
