@@ -151,3 +151,33 @@ def test_run_starts_in_a_folder_never_built(tmp_path):
     lines = calls.read_text().splitlines()
     assert lines[0].startswith("cmake -S . -B build") and lines[1].startswith("cmake --build build"), lines
     assert lines[2] == "python -m harness demo --out x", lines
+
+
+@pytest.mark.parametrize("cache, configures", [
+    ({}, False),
+    ({"OBJECTS_PYTHON:FILEPATH": "/another/python"}, True),
+    ({"CMAKE_BUILD_TYPE:STRING": "Debug"}, True),
+    ({"CMAKE_HOME_DIRECTORY:INTERNAL": "/another/tree"}, True),
+])
+def test_a_build_folder_configured_alike_is_only_built(tmp_path, monkeypatch, cache, configures):
+    """Configuring again costs seconds per command; `cmake --build` configures by itself when a CMake file or
+    the set of object files changes, so the harness configures only a folder set up otherwise."""
+    from harness.fmi.fmus import PROJECT_ROOT, build_fmus
+    log = tmp_path / "calls.log"
+    recorded = tmp_path / "bin" / "cmake"
+    recorded.parent.mkdir()
+    recorded.write_text(f"#!/bin/sh\necho \"$*\" >> {log}\n")
+    recorded.chmod(0o755)
+    entries = {"CMAKE_COMMAND:INTERNAL": str(recorded), "CMAKE_BUILD_TYPE:STRING": "Release",
+               "OBJECTS_PYTHON:UNINITIALIZED": sys.executable, "CMAKE_HOME_DIRECTORY:INTERNAL": str(PROJECT_ROOT)}
+    for key, value in cache.items():  # replaces the entry of the same name, whatever its type
+        entries = {k: v for k, v in entries.items() if k.split(":")[0] != key.split(":")[0]} | {key: value}
+    (tmp_path / "CMakeCache.txt").write_text("".join(f"{key}={value}\n" for key, value in entries.items()))
+    monkeypatch.setenv("PENDULUM_BUILD_DIR", str(tmp_path))
+    monkeypatch.delenv("PENDULUM_SKIP_BUILD", raising=False)
+    build_fmus()
+    calls = log.read_text().splitlines()
+    assert calls[-1] == f"--build {tmp_path} -j2"
+    assert len(calls) == (2 if configures else 1), calls
+    if configures:
+        assert calls[0].startswith(f"-S {PROJECT_ROOT} -B {tmp_path} ") and "-DCMAKE_BUILD_TYPE=Release" in calls[0]

@@ -62,10 +62,25 @@ def configured_cmake(folder: Path) -> str:
     return "cmake"
 
 
+def configured_alike(folder: Path, settings: dict[str, str]) -> bool:
+    """Whether the build folder was configured from this tree with these settings. Then `cmake --build`
+    alone is enough: it configures again by itself when a CMake file or the set of object files changed."""
+    cache = folder / "CMakeCache.txt"
+    if not cache.is_file():
+        return False
+    found = dict(line.split(":", 1)[0:1] + line.split("=", 1)[1:] for line in
+                 cache.read_text(errors="replace").splitlines() if ":" in line and "=" in line)
+    expected = {"CMAKE_HOME_DIRECTORY": str(PROJECT_ROOT), **settings}
+    return all(found.get(name) == value for name, value in expected.items())
+
+
 def _build(output, errors) -> None:
     cmake = configured_cmake(build_dir())
-    for command in ([cmake, "-S", str(PROJECT_ROOT), "-B", str(build_dir()), "-DCMAKE_BUILD_TYPE=Release",
-                     f"-DOBJECTS_PYTHON={sys.executable}"], [cmake, "--build", str(build_dir()), "-j2"]):
+    settings = {"CMAKE_BUILD_TYPE": "Release", "OBJECTS_PYTHON": sys.executable}
+    configure = [cmake, "-S", str(PROJECT_ROOT), "-B", str(build_dir())] + [f"-D{name}={value}"
+                                                                            for name, value in settings.items()]
+    build = [cmake, "--build", str(build_dir()), "-j2"]
+    for command in ([build] if configured_alike(build_dir(), settings) else [configure, build]):
         result = run_program(command, stdout=output, stderr=errors)
         if result.returncode != 0:
             lines = (result.stderr or "").splitlines()

@@ -293,8 +293,8 @@ def stability_figures(limits, cases, tables: dict):
         shown = [z for limit, case, z in points if case.linear and math.isfinite(limit.theory_limit)
                  and not (table.get("partitioned") and z.imag == 0)]
         reach = max((abs(z) for z in shown), default=4.0)
-        x = np.linspace(-1.35 * reach, 0.45 * reach, 320)
-        y = np.linspace(-1.25 * reach, 1.25 * reach, 320)
+        x = np.linspace(-1.35 * reach, 0.45 * reach, 200)
+        y = np.linspace(-1.25 * reach, 1.25 * reach, 200)
         grid = x[None, :] + 1j * y[:, None]
         g = growth_on_grid(table, grid)
         ax.contourf(x, y, (g <= 1.0).astype(float), levels=[0.5, 1.5], colors=["#cfe3f7"])
