@@ -107,3 +107,26 @@ def test_a_ball_coming_to_rest_stops_them_there_with_the_reason(fmu_paths, metho
         assert "constraint floor acts from t = " in message and f"and {method} integrates free motion only" in message
         assert rest == pytest.approx(landing, abs=1e-8 if method == "taylor" else 1e-4)
         assert ball.get("y")[0] == pytest.approx(0.1, abs=1e-9)
+
+
+def test_the_accepted_methods_are_asked_once_per_version_of_the_file(fmu_paths, tmp_path, monkeypatch):
+    """A sweep asks per case and method; the FMU is asked once, and again only when the file changes."""
+    import os
+    import shutil
+
+    import harness.fmi.fmu_instance as fmu_instance
+    made = []
+    original = fmu_instance.FmuInstance.__init__
+
+    def counted(self, *arguments, **options):
+        made.append(arguments[0])
+        original(self, *arguments, **options)
+    monkeypatch.setattr(fmu_instance.FmuInstance, "__init__", counted)
+    fmu = tmp_path / "Pendulum.fmu"
+    shutil.copy(fmu_paths["SimplePendulum"], fmu)
+    first = accepted_methods(fmu)
+    assert accepted_methods(str(fmu)) == first and "stormer_verlet" in first
+    assert len(made) == 1
+    shutil.copy(fmu_paths["DoublePendulum"], fmu)  # a mass matrix that is not constant: no stormer_verlet
+    os.utime(fmu, ns=(os.stat(fmu).st_atime_ns, os.stat(fmu).st_mtime_ns + 1_000_000_000))
+    assert "stormer_verlet" not in accepted_methods(fmu) and len(made) == 2

@@ -222,3 +222,24 @@ def test_instances_of_one_fmu_share_one_extraction_and_one_library(fmu_paths, tm
         result = master.run()
         assert result.stopped_at is None and len(master.units) == 39
     assert not any(path.exists() for path in extracted)
+
+
+def test_runs_that_share_the_fmus_give_a_fresh_runs_numbers_and_unload_the_library_at_the_end(fmu_paths):
+    """A planner runs a scene a thousand times: the runs share one extraction and one loaded library of
+    each FMU (`SharedFmus`), which stays loaded between the runs and is unloaded when the share closes."""
+    from harness.fmi.fmu_instance import SharedFmus
+    system = load_system(PROJECT_ROOT / "scenes" / "coupled_pendulums.json")
+    options = MasterOptions(stop=1.0, step=0.01, algorithm="gauss-seidel", extrapolation="linear")
+    fresh = run_system(system, options)
+
+    def mapped() -> set[str]:
+        return {line.split()[-1] for line in Path("/proc/self/maps").read_text().splitlines()
+                if line.endswith(("/SimplePendulum.so", "/Spring.so")) and "/binaries/" in line}
+    before = mapped()
+    with SharedFmus() as fmus:
+        for _ in range(4):  # two instances of SimplePendulum and one of Spring each time
+            shared = run_system(system, options, fmus)
+            for name in ("left.x", "right.x", "spring.Fa_x"):
+                assert np.array_equal(shared[name], fresh[name]), name
+            assert len(mapped() - before) == 2  # loaded between the runs, once each
+    assert mapped() == before

@@ -103,10 +103,13 @@ class Master:
     """Runs a System; build once, call run() once. It sets the parts up from the options (an
     algorithm, the controls over it, the C loop for plain fixed-step runs) and records the rows."""
 
-    def __init__(self, system: System, options: MasterOptions):
+    def __init__(self, system: System, options: MasterOptions, fmus: SharedFmus | None = None):
+        """`fmus`: extractions and loaded libraries to share with other runs (kept open); by default the
+        master makes its own and removes them when it is freed."""
         self.system, self.options = system, options
         self.units: list[Unit] = []
-        self.fmus = SharedFmus()  # instances of one FMU share its extraction and its loaded library
+        self._owns_fmus = fmus is None
+        self.fmus = fmus or SharedFmus()  # instances of one FMU share its extraction and its loaded library
         arena = Arena()  # and the units' buffers lie side by side
         try:  # whatever fails while setting up, the instances made so far are freed
             with where(system.origin, system.workspace):
@@ -284,7 +287,8 @@ class Master:
         for unit in self.units:
             unit.free()
         self.units = []
-        self.fmus.close()
+        if self._owns_fmus:
+            self.fmus.close()
 
     def __enter__(self) -> "Master":
         return self
@@ -293,6 +297,6 @@ class Master:
         self.free()
 
 
-def run_system(system: System, options: MasterOptions) -> CoSimulationResult:
-    with Master(system, options) as master:
+def run_system(system: System, options: MasterOptions, fmus: SharedFmus | None = None) -> CoSimulationResult:
+    with Master(system, options, fmus) as master:
         return master.run()

@@ -216,6 +216,7 @@ class FmuInstance:
         except Exception as error:  # fmpy raises plain exceptions when the binary cannot be loaded
             raise HarnessError(f"{self.path}: cannot load {library.name} ({first_problem(error)})") from None
         self.loaded = fmu  # what a further instance of this FMU may share (`template`)
+        self.library = library
         try:
             if fmi3:
                 options = {"earlyReturnAllowed": True} if self.early_return and kind == "CS" else {}
@@ -485,7 +486,6 @@ class IntegerReader:
     address: int   # that function's address, for a C loop
 
 
-@lru_cache(maxsize=None)
 def _sharing(loaded, library: str, name: str):
     """A new fmpy FMU object that shares `loaded`'s library and function table (fmpy builds the
     table by reflection, some milliseconds per instance). It takes one more reference to the
@@ -500,12 +500,14 @@ def _sharing(loaded, library: str, name: str):
 
 class SharedFmus:
     """One extraction and one model description per FMU file for all the instances made through it,
-    so that instances of one FMU share one folder and one loaded library. `close()` (after the
-    instances are freed) removes the folders."""
+    so that instances of one FMU share one folder and one loaded library, also one run's after
+    another's (the library stays loaded until `close()`). `close()` (after the instances are freed)
+    removes the folders."""
 
     def __init__(self):
         self._extracted: dict[Path, tuple[str, object]] = {}
         self._templates: dict[tuple[Path, str], FmuInstance] = {}
+        self._held: list[int] = []  # a reference of our own to each library the templates' tables point into
 
     def instance(self, fmu: str | Path, name: str, kind: str = "CS") -> FmuInstance:
         path = Path(fmu).resolve() if Path(fmu).exists() else Path(fmu)
@@ -516,11 +518,17 @@ class SharedFmus:
         unzipdir, description = self._extracted[path]
         instance = FmuInstance(fmu, kind=kind, name=name, unzipdir=unzipdir, description=description,
                                template=self._templates.get((path, kind)))
-        self._templates.setdefault((path, kind), instance)
+        if (path, kind) not in self._templates:
+            self._templates[path, kind] = instance
+            self._held.append(ctypes.CDLL(str(instance.library))._handle)
         return instance
 
     def close(self) -> None:
+        from fmpy import freeLibrary
         self._templates = {}
+        held, self._held = self._held, []
+        for handle in held:
+            freeLibrary(handle)
         folders, self._extracted = self._extracted, {}
         for unzipdir, _ in folders.values():
             shutil.rmtree(unzipdir, ignore_errors=True)
@@ -532,12 +540,22 @@ class SharedFmus:
         self.close()
 
 
-def accepted_methods(fmu: str) -> tuple[str, ...]:
+def accepted_methods(fmu: str | Path) -> tuple[str, ...]:
     """The integration methods an FMU runs from its default start, in the Solver enumeration's order: every
     method but stormer_verlet where the object's mass matrix is not constant, neither it nor taylor where a
     constraint always acts (bilateral, compliant), and neither where a rigid constraint acts at the start (a
     taut string: they integrate free motion only). Asked of the FMU itself (setting `solver` is refused for a
-    method it lacks, initialization for one that cannot start), so that the answer is the binary's."""
+    method it lacks, initialization for one that cannot start), so that the answer is the binary's; once per
+    process and version of the file (a sweep asks it per case and method)."""
+    try:
+        found = Path(fmu).stat()
+    except OSError:
+        raise HarnessError(f"{fmu}: no such FMU file") from None
+    return _accepted_methods(str(fmu), found.st_mtime_ns, found.st_size)
+
+
+@lru_cache(maxsize=None)
+def _accepted_methods(fmu: str, modified: int, size: int) -> tuple[str, ...]:
     with FmuInstance(fmu, name="probe") as instance:
         events = instance.model_description.numberOfEventIndicators > 0
 

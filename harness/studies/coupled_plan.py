@@ -15,7 +15,7 @@ import numpy as np
 from harness.cosim.master import MasterOptions, run_system
 from harness.cosim.structure import System
 from harness.errors import HarnessError
-from harness.fmi.fmu_instance import accepted_methods
+from harness.fmi.fmu_instance import SharedFmus, accepted_methods
 from harness.fmi.methods import PLANNABLE, plan_order, plan_settings, plan_solver
 from harness.studies.coupling import derived_reference
 from harness.studies.monolithic import MonolithicScene
@@ -27,14 +27,14 @@ INTERNAL_DIVISORS = (1, 2, 4, 8, 16, 32)
 
 
 def _run(system: System, objects: dict[str, int], pairs: list[tuple[str, str]], method: str, H: float, h: float,
-         duration: float, frames: np.ndarray) -> tuple[np.ndarray, dict[str, int]]:
+         duration: float, frames: np.ndarray, fmus: SharedFmus) -> tuple[np.ndarray, dict[str, int]]:
     """Every object point at the frame times (frames, points, 2), which are whole multiples of H, and
     each object's evaluations (a Jacobian counts one per state, as `FmuInstance.work`); inf after a
     stop."""
     components = [replace(c, start={**c.start, **plan_settings(method, h)}) if c.name in objects else c
                   for c in system.components]
     result = run_system(replace(system, components=components),
-                        MasterOptions(stop=duration, step=H, algorithm="gauss-seidel", extrapolation="linear"))
+                        MasterOptions(stop=duration, step=H, algorithm="gauss-seidel", extrapolation="linear"), fmus)
     rows = np.rint(frames / H).astype(int)
     positions = np.full((len(frames), len(pairs), 2), np.inf)
     if result.stopped_at is None:
@@ -48,6 +48,13 @@ def _run(system: System, objects: dict[str, int], pairs: list[tuple[str, str]], 
 
 def plan_coupled(system: System, tolerance: float, duration: float, frame: float, scheduler=None,
                  workers=None) -> list[ObjectPlan]:
+    # the candidates' runs, a thousand on a scene of three FMUs, share each FMU's extraction and library
+    with SharedFmus() as shared:
+        return _plan_coupled(system, tolerance, duration, frame, shared)
+
+
+def _plan_coupled(system: System, tolerance: float, duration: float, frame: float,
+                  shared: SharedFmus) -> list[ObjectPlan]:
     scene = MonolithicScene(system)
     objects = {name: 2 * kind.functions["n"] for kind in scene.kinds.values() for name in kind.names}
     kinds = {name: identifier for identifier, kind in scene.kinds.items() for name in kind.names}
@@ -71,7 +78,8 @@ def plan_coupled(system: System, tolerance: float, duration: float, frame: float
         evaluations = {}
 
         def run(scale: float) -> np.ndarray:
-            positions, evaluations[scale] = _run(system, objects, pairs, method, H * scale, h * scale, duration, grid)
+            positions, evaluations[scale] = _run(system, objects, pairs, method, H * scale, h * scale, duration,
+                                                 grid, shared)
             return positions
         predicted = step_doubling(run, min(2, plan_order(method)), tolerance)
         return None if predicted is None else (predicted, evaluations[1.0])
@@ -91,13 +99,13 @@ def plan_coupled(system: System, tolerance: float, duration: float, frame: float
         if candidates:
             break  # a coarser communication step already works: finer ones only add exchanges
     default_positions, default_evaluations = _run(system, objects, pairs, DEFAULT[0], frame, DEFAULT[1], duration,
-                                                  grid)
+                                                  grid, shared)
     default_errors = errors_of(default_positions)
     if max(default_errors.values()) <= tolerance:  # the default is what the plan is measured against: always a choice
         candidates.append((sum(default_evaluations.values()), DEFAULT[0], frame, DEFAULT[1],
                            max(default_errors.values())))
     for cost, method, H, h, predicted in sorted(candidates):
-        positions, evaluations = _run(system, objects, pairs, method, H, h, duration, grid)
+        positions, evaluations = _run(system, objects, pairs, method, H, h, duration, grid, shared)
         errors = errors_of(positions)
         if max(errors.values()) <= tolerance:
             return [ObjectPlan(name, kinds[name], "nonlinear", method, h, predicted, errors[name],
