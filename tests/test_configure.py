@@ -149,8 +149,17 @@ def test_run_starts_in_a_folder_never_built(tmp_path):
                             env={"PATH": str(tools), "HOME": str(tmp_path)})
     assert result.returncode == 0, result.stdout + result.stderr
     lines = calls.read_text().splitlines()
-    assert lines[0].startswith("cmake -S . -B build") and lines[1].startswith("cmake --build build"), lines
-    assert lines[2] == "python -m harness demo --out x", lines
+    assert lines[-3].startswith("cmake -S . -B build") and lines[-2].startswith("cmake --build build"), lines
+    assert lines[-1] == "python -m harness demo --out x", lines
+    # before the build: bytecode for the environment (once) and the project's modules (each time)
+    assert any("compileall" in line and "sysconfig" not in line for line in lines[:-3])
+    assert any(line.endswith("compileall -q -j0 harness tools benchmarks tests") for line in lines[:-3])
+    calls.unlink()
+    again = subprocess.run([str(tmp_path / "run"), "demo", "--out", "x"], capture_output=True, text=True,
+                           env={"PATH": str(tools), "HOME": str(tmp_path)})
+    assert again.returncode == 0, again.stdout + again.stderr
+    lines = calls.read_text().splitlines()
+    assert not any("sysconfig" in line for line in lines) and len(lines) == 4, lines
 
 
 @pytest.mark.parametrize("cache, configures", [
