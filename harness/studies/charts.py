@@ -124,9 +124,10 @@ def save(figure, out: Path, stem: str, tips: Tooltips | None = None) -> list[Pat
 def log_axes(ax) -> None:
     ax.set_xscale("log")
     ax.set_yscale("log")
-    ax.xaxis.set_minor_formatter(matplotlib.ticker.NullFormatter())
     ax.yaxis.set_major_locator(matplotlib.ticker.LogLocator(numticks=6))
-    ax.yaxis.set_minor_formatter(matplotlib.ticker.NullFormatter())
+    for axis in (ax.xaxis, ax.yaxis):  # a mark per decade: 2, 3, ..., 9 as well cost a third of a chart's drawing
+        axis.set_minor_locator(matplotlib.ticker.LogLocator(subs=(1.0,), numticks=100))
+        axis.set_minor_formatter(matplotlib.ticker.NullFormatter())
     ax.grid(True, which="major", alpha=0.3)
     ax.tick_params(labelsize=7.5)
 
