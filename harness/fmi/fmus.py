@@ -68,8 +68,10 @@ def configured_alike(folder: Path, settings: dict[str, str]) -> bool:
     cache = folder / "CMakeCache.txt"
     if not cache.is_file():
         return False
-    found = dict(line.split(":", 1)[0:1] + line.split("=", 1)[1:] for line in
-                 cache.read_text(errors="replace").splitlines() if ":" in line and "=" in line)
+    found = {}
+    for line in cache.read_text(errors="replace").splitlines():  # NAME:TYPE=value
+        name, _, typed = line.partition(":")
+        found[name] = typed.partition("=")[2]
     expected = {"CMAKE_HOME_DIRECTORY": str(PROJECT_ROOT), **settings}
     return all(found.get(name) == value for name, value in expected.items())
 

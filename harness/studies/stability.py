@@ -296,7 +296,7 @@ def measure(job: tuple[str, Case, str, dict]) -> Limit:
     linear_twin = case if case.linear else Case(case.object, case.damping, 0.01, case.omega,
                                                 eigenvalues=(1j, -1j))
     hint = theory_limit(table, linear_twin)
-    predicted = hint if case.linear else math.nan  # theory_limit(table, case)
+    predicted = hint if case.linear else math.nan  # theory_limit(table, case): the twin is the case itself
     probe = Probe(fmu, case, method)
     try:
         y = hint / 4 if math.isfinite(hint) else 1.0  # A-stable: scanned up from h omega = 1
