@@ -151,42 +151,53 @@ def test_run_starts_in_a_folder_never_built(tmp_path):
     lines = calls.read_text().splitlines()
     assert lines[-3].startswith("cmake -S . -B build") and lines[-2].startswith("cmake --build build"), lines
     assert lines[-1] == "python -m harness demo --out x", lines
-    # before the build: bytecode for the environment (once) and the project's modules (each time)
-    assert any("compileall" in line and "sysconfig" not in line for line in lines[:-3])
-    assert any(line.endswith("compileall -q -j0 harness tools benchmarks tests") for line in lines[:-3])
+    # before the build: bytecode for the environment (once: where its packages are, then them) and for the
+    # project's modules (each time)
+    assert any("sysconfig" in line for line in lines[:-3])
+    assert [line for line in lines[:-3] if "compileall" in line] == \
+        ["python -m compileall -q -j0 ", "python -m compileall -q -j0 harness tools benchmarks tests"], lines
     calls.unlink()
     again = subprocess.run([str(tmp_path / "run"), "demo", "--out", "x"], capture_output=True, text=True,
                            env={"PATH": str(tools), "HOME": str(tmp_path)})
     assert again.returncode == 0, again.stdout + again.stderr
     lines = calls.read_text().splitlines()
     assert not any("sysconfig" in line for line in lines) and len(lines) == 4, lines
+    assert lines[0] == "python -m compileall -q -j0 harness tools benchmarks tests", lines
 
 
-@pytest.mark.parametrize("cache, configures", [
-    ({}, False),
-    ({"OBJECTS_PYTHON:FILEPATH": "/another/python"}, True),
-    ({"CMAKE_BUILD_TYPE:STRING": "Debug"}, True),
-    ({"CMAKE_HOME_DIRECTORY:INTERNAL": "/another/tree"}, True),
+@pytest.mark.parametrize("cache, makefile, fails_once, calls_made", [
+    ({}, True, False, ["build"]),
+    ({"OBJECTS_PYTHON:FILEPATH": "/another/python"}, True, False, ["configure", "build"]),
+    ({"CMAKE_BUILD_TYPE:STRING": "Debug"}, True, False, ["configure", "build"]),
+    ({"CMAKE_HOME_DIRECTORY:INTERNAL": "/another/tree"}, True, False, ["configure", "build"]),
+    ({}, False, False, ["configure", "build"]),  # a configure that failed: its cache, no build system
+    ({}, True, True, ["build", "configure", "build"]),  # a build alone that fails: once more, configured
 ])
-def test_a_build_folder_configured_alike_is_only_built(tmp_path, monkeypatch, cache, configures):
+def test_a_build_folder_configured_alike_is_only_built(tmp_path, monkeypatch, cache, makefile, fails_once,
+                                                        calls_made):
     """Configuring again costs seconds per command; `cmake --build` configures by itself when a CMake file or
-    the set of object files changes, so the harness configures only a folder set up otherwise."""
+    the set of object files changes, so the harness configures only a folder set up otherwise, or one whose
+    build alone fails."""
     from harness.fmi.fmus import PROJECT_ROOT, build_fmus
-    log = tmp_path / "calls.log"
+    log, failed = tmp_path / "calls.log", tmp_path / "failed-once"
     recorded = tmp_path / "bin" / "cmake"
     recorded.parent.mkdir()
-    recorded.write_text(f"#!/bin/sh\necho \"$*\" >> {log}\n")
+    fail = f'if [ "$1" = --build ] && [ ! -f {failed} ]; then : > {failed}; exit 2; fi\n' if fails_once else ""
+    recorded.write_text(f'#!/bin/sh\necho "$*" >> {log}\n{fail}')
     recorded.chmod(0o755)
     entries = {"CMAKE_COMMAND:INTERNAL": str(recorded), "CMAKE_BUILD_TYPE:STRING": "Release",
                "OBJECTS_PYTHON:UNINITIALIZED": sys.executable, "CMAKE_HOME_DIRECTORY:INTERNAL": str(PROJECT_ROOT)}
     for key, value in cache.items():  # replaces the entry of the same name, whatever its type
         entries = {k: v for k, v in entries.items() if k.split(":")[0] != key.split(":")[0]} | {key: value}
     (tmp_path / "CMakeCache.txt").write_text("".join(f"{key}={value}\n" for key, value in entries.items()))
+    if makefile:
+        (tmp_path / "Makefile").write_text("all:\n")
     monkeypatch.setenv("PENDULUM_BUILD_DIR", str(tmp_path))
     monkeypatch.delenv("PENDULUM_SKIP_BUILD", raising=False)
     build_fmus()
     calls = log.read_text().splitlines()
+    assert ["build" if call.startswith("--build") else "configure" for call in calls] == calls_made, calls
     assert calls[-1] == f"--build {tmp_path} -j2"
-    assert len(calls) == (2 if configures else 1), calls
-    if configures:
-        assert calls[0].startswith(f"-S {PROJECT_ROOT} -B {tmp_path} ") and "-DCMAKE_BUILD_TYPE=Release" in calls[0]
+    for call in calls:
+        if not call.startswith("--build"):
+            assert call.startswith(f"-S {PROJECT_ROOT} -B {tmp_path} ") and "-DCMAKE_BUILD_TYPE=Release" in call

@@ -217,3 +217,22 @@ def test_the_predictor_corrector_theory_is_the_recursion_run(k):
             logs.append(log_size)
         rate = math.exp((logs[-1] - logs[-1001]) / 1000)
         assert rate == pytest.approx(growth(table, z), rel=2e-3), z
+
+
+def test_the_growth_as_arrays_is_the_growth_point_by_point():
+    """The charts' regions and the predicted limits' scan take the growth as arrays; it is the scalar
+    growth at every point (pairs of roots for Stormer-Verlet, an underdamped and an overdamped pair)."""
+    from harness.studies.stability import atlas_tables, growth_on_grid, largest_growth, largest_growth_on_grid
+    rng = np.random.default_rng(5)
+    z = rng.uniform(-3, 1, 40) + 1j * rng.uniform(-3, 3, 40)
+    for name, table in atlas_tables().items():
+        if table.get("partitioned"):
+            pairs = np.array([[0.7j - 0.1, -0.7j - 0.1], [-0.2, -1.9], [1.2j, -1.2j]])
+            expected = [largest_growth(table, list(pair)) for pair in pairs]
+            assert np.allclose(largest_growth_on_grid(table, pairs), expected, rtol=1e-12, atol=0), name
+            with pytest.raises(ValueError):
+                largest_growth_on_grid(table, pairs[:, :1])
+            continue
+        expected = [growth(table, complex(w)) for w in z]
+        assert np.allclose(growth_on_grid(table, z), expected, rtol=1e-12, atol=0), name
+        assert largest_growth_on_grid(table, z.reshape(8, 5))[3] == pytest.approx(max(expected[15:20]), rel=1e-12)

@@ -551,11 +551,11 @@ def accepted_methods(fmu: str | Path) -> tuple[str, ...]:
         found = Path(fmu).stat()
     except OSError:
         raise HarnessError(f"{fmu}: no such FMU file") from None
-    return _accepted_methods(str(fmu), found.st_mtime_ns, found.st_size)
+    return _accepted_methods(str(fmu), (found.st_ino, found.st_size, found.st_mtime_ns, found.st_ctime_ns))
 
 
 @lru_cache(maxsize=None)
-def _accepted_methods(fmu: str, modified: int, size: int) -> tuple[str, ...]:
+def _accepted_methods(fmu: str, version: tuple[int, ...]) -> tuple[str, ...]:
     with FmuInstance(fmu, name="probe") as instance:
         events = instance.model_description.numberOfEventIndicators > 0
 

@@ -63,11 +63,13 @@ def configured_cmake(folder: Path) -> str:
 
 
 def configured_alike(folder: Path, settings: dict[str, str]) -> bool:
-    """Whether the build folder was configured from this tree with these settings. Then `cmake --build`
-    alone is enough: it configures again by itself when a CMake file or the set of object files changed."""
+    """Whether the build folder was configured, to the end, from this tree with these settings. Then
+    `cmake --build` alone is enough for the harness: it configures again by itself when a CMake file,
+    web/wasm.flags or the set of object files or generator modules changed. What only a configure looks
+    for (compilers installed since, the generator's imports) `./run` finds: it always configures."""
     cache = folder / "CMakeCache.txt"
-    if not cache.is_file():
-        return False
+    if not cache.is_file() or not any((folder / name).is_file() for name in ("Makefile", "build.ninja")):
+        return False  # a configure that failed writes its cache but no build system
     found = {}
     for line in cache.read_text(errors="replace").splitlines():  # NAME:TYPE=value
         name, _, typed = line.partition(":")
@@ -82,7 +84,12 @@ def _build(output, errors) -> None:
     configure = [cmake, "-S", str(PROJECT_ROOT), "-B", str(build_dir())] + [f"-D{name}={value}"
                                                                             for name, value in settings.items()]
     build = [cmake, "--build", str(build_dir()), "-j2"]
-    for command in ([build] if configured_alike(build_dir(), settings) else [configure, build]):
+    if configured_alike(build_dir(), settings):
+        if run_program(build, stdout=output, stderr=errors).returncode == 0:
+            return
+        # a build alone can fail where a configure would mend it (a module removed from the generator):
+        # once more from the configure, whose failure is then the one reported
+    for command in (configure, build):
         result = run_program(command, stdout=output, stderr=errors)
         if result.returncode != 0:
             lines = (result.stderr or "").splitlines()

@@ -203,8 +203,14 @@ def theory_limit(table: dict, case: Case) -> float:
     unstable = np.flatnonzero(~allowed(ys, largest_growth_on_grid(table, ys[:, None] * eigenvalues)))
     if not len(unstable):
         return math.inf
-    low = scan[unstable[0]]
-    high = low * 1.02
+    k = int(unstable[0])  # scan[k] stable, scan[k + 1] not: checked on the scalar path, from which the
+    while k > 0 and not stable(scan[k]):  # arrays can differ in the last bit at a point of the scan
+        k -= 1
+    while stable(scan[k + 1]):
+        k += 1
+        if k + 1 == len(scan):
+            return math.inf
+    low, high = scan[k], scan[k + 1]
     for _ in range(60):
         middle = 0.5 * (low + high)
         low, high = (middle, high) if stable(middle) else (low, middle)
@@ -401,6 +407,8 @@ def largest_growth_on_grid(table: dict, zs: np.ndarray) -> np.ndarray:
     """largest_growth() for arrays: over the last axis of zs (pairs of it for a partitioned method)."""
     zs = np.asarray(zs, dtype=complex)
     if table.get("partitioned"):
+        if zs.shape[-1] % 2:
+            raise ValueError("a partitioned method's growth is taken over pairs of roots: an even number")
         z1, z2 = zs[..., 0::2], zs[..., 1::2]
         matrices = verlet_matrix((z1 * z2).real, -(z1 + z2).real)
         return np.max(np.abs(np.linalg.eigvals(matrices)), axis=(-1, -2))
