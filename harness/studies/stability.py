@@ -93,11 +93,13 @@ def extrapolated_midpoint(z, columns: int):
 @lru_cache(maxsize=None)
 def method_tables(program: str | None = None) -> dict:
     """The Butcher tableaux and Adams-Bashforth coefficients as the FMUs hold them (printed by the
-    build's `integrator_tables`)."""
+    build's `integrator_tables`; read once per process, built only where missing: the commands that
+    use the tables have built the FMUs already, which costs seconds even when nothing changed)."""
     from harness.fmi.fmus import build_dir, build_fmus
     if program is None:
-        build_fmus()
         program = str(build_dir() / "bin" / "integrator_tables")
+        if not Path(program).is_file():
+            build_fmus()
     return json.loads(subprocess.run([program], check=True, capture_output=True, text=True).stdout)
 
 
