@@ -109,7 +109,8 @@ class Master:
         self.system, self.options = system, options
         self.units: list[Unit] = []
         self._owns_fmus = fmus is None
-        self.fmus = fmus if fmus is not None else SharedFmus()  # instances of one FMU share its extraction and its loaded library
+        # instances of one FMU share its extraction and its loaded library
+        self.fmus = fmus if fmus is not None else SharedFmus()
         arena = Arena()  # and the units' buffers lie side by side
         try:  # whatever fails while setting up, the instances made so far are freed
             with where(system.origin, system.workspace):

@@ -52,14 +52,19 @@ def build_fmus(quiet: bool = True) -> None:
 def configured_cmake(folder: Path) -> str:
     """The CMake that configured the build folder, else the one on PATH. Another CMake (an activated
     environment's, from PyPI, beside Debian's) would regenerate the build system and rebuild every FMU."""
+    recorded = cache_entries(folder).get("CMAKE_COMMAND")
+    return recorded if recorded and os.access(recorded, os.X_OK) else "cmake"
+
+
+def cache_entries(folder: Path) -> dict[str, str]:
+    """The entries of a build folder's CMakeCache.txt (NAME:TYPE=value) by name; none when it has none."""
     cache = folder / "CMakeCache.txt"
+    entries = {}
     if cache.is_file():
         for line in cache.read_text(errors="replace").splitlines():
-            if line.startswith("CMAKE_COMMAND:INTERNAL="):
-                recorded = line.split("=", 1)[1]
-                if os.access(recorded, os.X_OK):
-                    return recorded
-    return "cmake"
+            name, _, typed = line.partition(":")
+            entries[name] = typed.partition("=")[2]
+    return entries
 
 
 def configured_alike(folder: Path, settings: dict[str, str]) -> bool:
@@ -67,13 +72,9 @@ def configured_alike(folder: Path, settings: dict[str, str]) -> bool:
     `cmake --build` alone is enough for the harness: it configures again by itself when a CMake file,
     web/wasm.flags or the set of object files or generator modules changed. What only a configure looks
     for (compilers installed since, the generator's imports) `./run` finds: it always configures."""
-    cache = folder / "CMakeCache.txt"
-    if not cache.is_file() or not any((folder / name).is_file() for name in ("Makefile", "build.ninja")):
+    if not any((folder / name).is_file() for name in ("Makefile", "build.ninja")):
         return False  # a configure that failed writes its cache but no build system
-    found = {}
-    for line in cache.read_text(errors="replace").splitlines():  # NAME:TYPE=value
-        name, _, typed = line.partition(":")
-        found[name] = typed.partition("=")[2]
+    found = cache_entries(folder)
     expected = {"CMAKE_HOME_DIRECTORY": str(PROJECT_ROOT), **settings}
     return all(found.get(name) == value for name, value in expected.items())
 
