@@ -170,7 +170,7 @@ def command_run(args: argparse.Namespace) -> int:
         options = MasterOptions(stop=stop, step=step, algorithm=args.algorithm, extrapolation=args.extrapolation,
                                 on_discard=args.on_discard, progress=not args.quiet, iterate_tol=args.iterate,
                                 tolerance=args.tolerance, energy_tol=args.energy_tolerance,
-                                energy_correction=args.energy_correction)
+                                energy_correction=args.energy_correction, contact_steps=args.contact_steps)
         with Master(system, options) as master:
             if scene is not None:  # first: a reference that cannot be written stops the command before --out
                 from harness.fmi.simulation import communication_grid
@@ -184,7 +184,9 @@ def command_run(args: argparse.Namespace) -> int:
                 result = master.run(on_row=write_row)
     steps = (f"{result.macro_steps} macro steps chosen by step doubling (rows every {step:g} s)" if args.tolerance
              else f"{result.macro_steps} macro steps chosen by the bonds' energy (rows every {step:g} s)"
-             if args.energy_tolerance else f"{result.macro_steps} macro steps of {step:g} s")
+             if args.energy_tolerance
+             else f"{result.macro_steps} macro steps landed on the contacts (rows every {step:g} s)"
+             if args.contact_steps else f"{result.macro_steps} macro steps of {step:g} s")
     print(f"wrote {out}: {steps}, {args.algorithm}, {result.extrapolation} "
           f"extrapolation; energy residual {result.energy_residual:.3e} J"
           + (f", {result.retries} retried steps" if result.retries else "")
@@ -423,9 +425,13 @@ def build_parser() -> argparse.ArgumentParser:
                         "then stays below J); --step is then the output interval and the largest macro step")
     p.add_argument("--energy-correction", action="store_true",
                    help="hand the energy the power bonds created back through the next steps' forces")
+    p.add_argument("--contact-steps", type=count(100_000), metavar="N",
+                   help="land macro steps on the onsets of the Contact elements' contacts (rollback through FMU "
+                        "states where the prediction fails) and resolve each contact in about N macro steps; "
+                        "--step is then the output interval and the largest macro step")
     p.add_argument("--out", default="run.csv", help="CSV file: time and <component>.<output> columns")
     p.add_argument("--reference", metavar="FILE.csv",
-                   help="also write the scene's derived monolithic solution (objects joined by Springs) at the same "
+                   help="also write the scene's derived monolithic solution (objects joined by Springs and Contacts) at the same "
                         "communication points, under the same column names, for every state and output it determines")
     p.add_argument("--quiet", action="store_true", help="no progress lines")
     p.set_defaults(run=command_run)

@@ -14,6 +14,8 @@ import pytest
 
 from harness.fmi.fmus import FMU_NAMES, build_dir
 
+from conftest import ELEMENT_MOTION
+
 VDMCHECK = "org.into-cps.vdmcheck.fmi2:vdmcheck2:1.1.3:zip:distribution-static"
 
 
@@ -111,11 +113,11 @@ def fmi_sim_binary() -> str | None:
                            criterion="the harness's simulate over the first 1 s, within 1e-12")
 @pytest.mark.parametrize("name", FMU_NAMES)
 def test_fmi_sim_agrees_with_the_harness(fmu_paths, unzipped, tmp_path, compatibility, name):
-    """Each FMU with its default experiment (10 s, 0.01 s); the Spring alone with moving ends."""
+    """Each FMU with its default experiment (10 s, 0.01 s); a coupling element alone with moving ends."""
     import numpy as np
     from harness.fmi.simulation import simulate
     out = tmp_path / "fmi_sim.csv"
-    start = {"a_vx": 0.5, "a_vy": -0.2, "b_x": 1.2, "b_y": 0.3} if name == "Spring" else {}
+    start = ELEMENT_MOTION.get(name, {})
     settings = [argument for k, v in start.items() for argument in ("--init-values", f"{k}={v!r}")]
     result = subprocess.run([fmi_sim_binary(), "--model", str(fmu_paths[name]), "-o", str(out), "co-simulation",
                              *settings], capture_output=True, text=True, timeout=300)

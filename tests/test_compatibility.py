@@ -15,10 +15,12 @@ from harness.fmi.fmus import FMU_NAMES, build_dir
 from harness.fmi.results import rows_on_grid
 from harness.fmi.simulation import simulate
 
+from conftest import ELEMENT_MOTION, ELEMENTS
+
 STOP, STEP = 10.0, 0.05
 ME_STOP, ME_RTOL, ME_BOUND = 1.0, 1e-9, 1e-6
-# The Spring alone with its default inputs rests at its rest length: stretch it and move one end.
-START = {"Spring": {"a_vx": 0.5, "a_vy": -0.2, "b_x": 1.2, "b_y": 0.3}}
+# A coupling element alone with its default inputs rests: its ends move.
+START = ELEMENT_MOTION
 HARNESS = "harness (this project, on fmpy's loader)"
 
 
@@ -99,9 +101,9 @@ def test_fmpy_co_simulation_gives_the_reference(references, compatibility, versi
 def test_fmpy_model_exchange_follows_a_tight_co_simulation(fmu_paths, compatibility, version):
     """Another integrator on the FMU's equations: CVode in Model Exchange against the FMU's own
     rkf45 at a tight tolerance, over a second (before the chaotic objects amplify the difference).
-    Not the Spring: it has no states, and in Model Exchange its ends stay where the inputs put them
+    Not the coupling elements: they have no states, and in Model Exchange their ends stay where the inputs put them
     (in Co-Simulation it moves them by their velocities over a step)."""
-    for name in (n for n in FMU_NAMES if n != "Spring"):
+    for name in (n for n in FMU_NAMES if n not in ELEMENTS):
         tight = simulate(fmu(name, "2.0"), ME_STOP, STEP, start_values={"solver": "rkf45", "tol": 1e-12})
         reference = {column: np.asarray(tight[column]) for column in float_outputs(name)}
         result = fmpy.simulate_fmu(str(fmu(name, version)), stop_time=ME_STOP, output_interval=STEP,

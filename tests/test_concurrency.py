@@ -9,14 +9,17 @@ import pytest
 from harness.fmi.fmu_instance import OK, FmuInstance
 from harness.fmi.fmus import FMU_NAMES
 
+from conftest import ELEMENT_MOTION, ELEMENTS
+
 OUTPUTS = {"SimplePendulum": ("phi", "omega", "x", "E"), "DoublePendulum": ("phi1", "phi2", "x2", "E"),
-           "SpringPendulum": ("phi", "eps", "x", "E"), "Spring": ("Fa_x", "Fa_y", "E_pot")}
+           "SpringPendulum": ("phi", "eps", "x", "E"), "Spring": ("Fa_x", "Fa_y", "E_pot"),
+           "Contact": ("Fa_x", "Fa_y", "gap", "E_pot")}
 SOLVERS = ("rk4", "ab4", "rkf45", "nystrom5", "heun", "ab6", "euler", "rk3")
 
 
 def run(instance: FmuInstance, name: str, k: int) -> list[float]:
-    if name == "Spring":
-        instance.initialize(b_vx=0.1 * k, a_vy=-0.05 * k, c=0.5)
+    if name in ELEMENTS:  # ends that move, and differently in each thread
+        instance.initialize(**{**ELEMENT_MOTION[name], "b_vx": 0.1 * k})
     else:
         instance.initialize(solver=SOLVERS[k], h=0.002, d=0.01 * k)
     for i in range(200):

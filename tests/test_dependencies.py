@@ -29,9 +29,9 @@ from fmpy.fmi2 import FMU2Model, FMU2Slave
 from fmpy.fmi3 import FMU3Model, FMU3Slave
 
 from harness.fmi.fmus import build_dir
-from harness.objects.registry import object_names
+from harness.objects.registry import handwritten_names, object_names
 
-NAMES = [*object_names(), "Spring"]
+NAMES = [*object_names(), *handwritten_names()]
 START_TIME = 0.2718  # not a multiple of the Kapitza drive's half period (0.01 s), where its anchor rests
 GENERIC = {"d": 0.3, "c": 0.7}  # damping on, so that the velocities' dependencies show
 MOVED = 1e-11  # a change above this, relative to max(1, |value|), counts as moving
@@ -154,7 +154,7 @@ class Instance:
 def constrained(described: Structure) -> bool:
     """An object with constraints: what its accelerations and forces depend on switches at contacts, so
     they list no dependencies (FMI: depends on every known), and a start must respect its constraints."""
-    return described.md.numberOfEventIndicators > 0
+    return described.md.numberOfEventIndicators > 0 and bool(described.states)
 
 
 def generic_point(described: Structure, folder: str) -> tuple[dict[str, float], dict[str, float]]:

@@ -338,6 +338,11 @@ def test_an_adaptive_discard_reports_the_tolerance(open_fmu, solver):
     ("Spring", {"k": 0.0}, ["fmi2SetReal", "k", "[1e-09, inf]"]),
     ("Spring", {"l0": -1.0}, ["fmi2SetReal", "l0", "[0, inf]"]),
     ("Spring", {"a_x": float("inf")}, ["fmi2SetReal", "a_x", "inf"]),
+    ("Contact", {"k": -1.0}, ["fmi2SetReal", "k", "-1", "[1e-09, inf]"]),
+    ("Contact", {"exponent": 0.5}, ["fmi2SetReal", "exponent", "0.5", "[1, 10]"]),
+    ("Contact", {"c": -0.2}, ["fmi2SetReal", "c", "-0.2", "[0, inf]"]),
+    ("Contact", {"R_b": -0.02}, ["fmi2SetReal", "R_b", "-0.02", "[0, inf]"]),
+    ("Contact", {"b_vz": float("nan")}, ["fmi2SetReal", "b_vz", "nan", "not a finite number"]),
 ])
 def test_bad_values_give_error_and_message_and_change_nothing(open_fmu, name, values, words):
     fmu = open_fmu(name)

@@ -22,6 +22,8 @@ from harness.fmi.methods import COUNTER_NAMES, METHODS
 from harness.fmi.fmus import FMU_NAMES, PROJECT_ROOT, build_dir, locate_fmu
 from harness.fmi.simulation import simulate
 
+from conftest import ELEMENT_MOTION
+
 SCENE = PROJECT_ROOT / "scenes" / "coupled_pendulums.json"
 
 
@@ -31,7 +33,7 @@ def fmi3(name: str) -> Path:
 
 @pytest.mark.parametrize("name", FMU_NAMES)
 def test_simulate_gives_the_fmi2_table_bit_for_bit(fmu_paths, name):
-    start = {} if name == "Spring" else {"solver": "rkf45"}  # adaptive: the counters differ by object
+    start = ELEMENT_MOTION.get(name, {"solver": "rkf45"})  # adaptive: the counters differ by object
     two = simulate(fmu_paths[name], 1.0, 0.01, start_values=start)
     three = simulate(fmi3(name), 1.0, 0.01, start_values=start)
     assert three.columns == two.columns

@@ -117,7 +117,7 @@ def test_run_writes_the_reference_under_the_runs_columns(fmu_paths, tmp_path, ca
 
 @pytest.mark.parametrize("change, words", [
     ("object to object", "joins two objects directly"),
-    ("spring to spring", "joins two Springs directly"),
+    ("spring to spring", "joins two elements directly"),
     ("linear model", "left.model = 'linear': the monolithic reference is the nonlinear model"),
     ("velocity into a force", "does not lead a Spring's force into a force input"),
 ])
@@ -155,7 +155,7 @@ def test_a_scene_without_energies_is_refused_by_name(fmu_paths, tmp_path):
     system = load_system(SCENES / "coupled_pendulums.json")
     broken = dataclasses.replace(system, components=[
         dataclasses.replace(c, fmu=bare) if c.name == "left" else c for c in system.components])
-    with pytest.raises(HarnessError, match="left .Bare.fmu. is neither a Spring nor made from an object file"):
+    with pytest.raises(HarnessError, match=r"left .Bare.fmu. is neither an element \(Spring, Contact\) nor made from an object file"):
         MonolithicScene(broken)
 
 

@@ -61,6 +61,7 @@ class ModelDescription:
     variables: list[Variable]
     enumerations: dict[str, list[tuple[str, int, str]]]
     source_files: list[str]
+    event_indicators: int = 0
     states: list[Variable] = field(default_factory=list)
 
 
@@ -109,7 +110,7 @@ def parse(path: Path) -> ModelDescription:
             derivative_of=int(derivative) if derivative else None, description=sv.get("description", ""),
         ))
     md = ModelDescription(path, identifier, root.get("guid"), root.get("description", ""), variables,
-                          enumerations, source_lists[0])
+                          enumerations, source_lists[0], int(root.get("numberOfEventIndicators", "0")))
     check(md)
     return md
 
@@ -198,6 +199,7 @@ def header(md: ModelDescription, xml_name: str) -> str:
         f"#define INTEGER_VR_BASE {len(reals)}",
         f"#define N_STATES {len(md.states)}",
         f"#define N_INPUTS {len(inputs)}",
+        f"#define N_EVENT_INDICATORS {md.event_indicators}",
         "",
     ]
     lines += [f"#define VR_{v.c_name} {v.value_reference}" for v in md.variables]

@@ -877,25 +877,29 @@ Status core_get_derivatives(Instance *inst, const char *function, double derivat
 
 Status core_get_event_indicators(Instance *inst, const char *function, double z[], size_t n)
 {
-    if (n != N_CONSTRAINTS) {
+    if (n != N_EVENT_INDICATORS) {
         log_error(inst, "%s: the number of event indicators is %lu, but this FMU has %d", function, (unsigned long)n,
-                  N_CONSTRAINTS);
+                  N_EVENT_INDICATORS);
         return STATUS_ERROR;
     }
     if (n > 0 && !z) {
         log_error(inst, "%s: the event indicator array is NULL", function);
         return STATUS_ERROR;
     }
+#if N_EVENT_INDICATORS > 0
+    if (!ensure_constants(inst, function)) return STATUS_ERROR;
 #if N_CONSTRAINTS > 0
     {
         double u[INPUT_SLOTS];
-        if (!ensure_constants(inst, function)) return STATUS_ERROR;
         event_indicators(&inst->constants, inst->s.active_constraints, inst->s.time, inst->s.real,
                          acting_inputs(inst, u), z);
-        if (first_non_finite(z, N_CONSTRAINTS) >= 0) {
-            log_discard(inst, "%s: an event indicator is not finite at the current state", function);
-            return STATUS_DISCARD;
-        }
+    }
+#else
+    model_event_indicators(&inst->constants, inst->s.time, inst->s.real, z);
+#endif
+    if (first_non_finite(z, N_EVENT_INDICATORS) >= 0) {
+        log_discard(inst, "%s: an event indicator is not finite at the current state", function);
+        return STATUS_DISCARD;
     }
 #endif
     return STATUS_OK;

@@ -691,7 +691,7 @@ static fmi3Status number_of(fmi3Instance instance, Function fn, const char *func
 
 fmi3Status fmi3GetNumberOfEventIndicators(fmi3Instance instance, size_t *nEventIndicators)
 {
-    return number_of(instance, FN_GET_NUMBER_OF_EVENT_INDICATORS, __func__, nEventIndicators, (size_t)N_CONSTRAINTS);
+    return number_of(instance, FN_GET_NUMBER_OF_EVENT_INDICATORS, __func__, nEventIndicators, (size_t)N_EVENT_INDICATORS);
 }
 
 fmi3Status fmi3GetNumberOfContinuousStates(fmi3Instance instance, size_t *nContinuousStates)

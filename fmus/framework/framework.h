@@ -47,6 +47,10 @@ typedef struct {
 #ifndef N_CONSTRAINTS /* a hand-written model without constraints (the Spring) */
 #define N_CONSTRAINTS 0
 #endif
+/* An object's event indicators are its constraints'; a hand-written model declares its own in its XML. */
+#if N_CONSTRAINTS > 0 && N_EVENT_INDICATORS != N_CONSTRAINTS
+#error "numberOfEventIndicators of the model description differs from the object's constraints"
+#endif
 
 /* Sizes that stay legal C for a model without states or inputs (the Spring). */
 #define STATE_SLOTS (N_STATES > 0 ? N_STATES : 1)
@@ -308,6 +312,12 @@ INTERNAL int start_constraints(const ModelConst *c, int32_t *active, double t, d
 INTERNAL int constraint_outputs(const ModelConst *c, double t, const double *u, double *real);
 INTERNAL void constraint_output_rates(const ModelConst *c, double t, const double *real, const double *dx,
                                       const double *u, double *rate);
+#endif
+
+#if N_CONSTRAINTS == 0 && N_EVENT_INDICATORS > 0
+/* physics.c of a hand-written model with event indicators (the Contact): z at time t from the inputs and
+ * parameters in real[]. Its events change no state: they tell Model Exchange where the outputs' law changes. */
+INTERNAL void model_event_indicators(const ModelConst *c, double t, const double *real, double *z);
 #endif
 
 /* Default for model_advance_inputs (instance.c): each input moves with its own first derivative. */

@@ -4,7 +4,8 @@ components may be FMI 2.0 and FMI 3.0 FMUs in any mix.
 
 The master is assembled from parts over one unit interface (`harness.cosim.unit`): an algorithm
 (`harness.cosim.algorithms`), the controls over it (`harness.cosim.controls`: iteration, retry on
-discard, step doubling) and, for plain fixed-step runs, the same loop in C
+discard, step doubling; `harness.cosim.energy`: the energy step control; `harness.cosim.contacts`: steps
+that land on contacts) and, for plain fixed-step runs, the same loop in C
 (`harness.cosim.native_core`), which the tests keep bit-identical to the Python parts.
 
 FMI 3.0 has no input derivatives, so an FMI 3.0 component cannot receive a linearly extrapolated
@@ -27,6 +28,7 @@ from typing import Callable
 import numpy as np
 
 from harness.cosim.algorithms import ALGORITHMS, Exchange
+from harness.cosim.contacts import ContactSteps
 from harness.cosim.energy import BondedStep, EnergyStepControl, PowerBonds, order_of
 from harness.cosim.controls import Iteration, RetryOnDiscard, StepDoubling, Stepper, Tally
 from harness.cosim.native_core import NativeLoop, load_core
@@ -54,6 +56,7 @@ class MasterOptions:
     tolerance: float | None = None    # adapt the macro step by step doubling to this error per step
     energy_tol: float | None = None   # adapt the macro step to keep the energy the power bonds create [J] below this
     energy_correction: bool = False   # hand the energy a bond created back through the next step's force
+    contact_steps: int | None = None  # land macro steps on contacts' onsets, this many steps per contact
     progress: bool = False
 
     def __post_init__(self) -> None:
@@ -73,6 +76,13 @@ class MasterOptions:
         if self.energy_tol is not None and self.on_discard == "retry":
             raise HarnessError("--energy-tolerance chooses the macro steps without rollback; it does not combine with "
                                "--on-discard retry")
+        if self.contact_steps is not None:
+            if not (isinstance(self.contact_steps, int) and 1 <= self.contact_steps <= 100_000):
+                raise HarnessError(f"--contact-steps {self.contact_steps!r}: give a whole number of steps per contact "
+                                   "from 1 to 100000")
+            if self.tolerance is not None or self.energy_tol is not None:
+                raise HarnessError("--contact-steps chooses the macro steps itself: it does not combine with "
+                                   "--tolerance or --energy-tolerance")
         for name in ("iterate_tol", "tolerance", "energy_tol"):
             value = getattr(self, name)
             if value is not None and not (value > 0 and math.isfinite(value)):
@@ -130,7 +140,7 @@ class Master:
             self.free()
             raise
 
-    def _parts(self) -> Stepper | StepDoubling:
+    def _parts(self) -> Stepper | StepDoubling | EnergyStepControl | ContactSteps:
         """What covers one communication interval: the macro step (the algorithm, or iteration over
         it), with retry on discard, or step doubling over it."""
         o = self.options
@@ -147,6 +157,8 @@ class Master:
             if o.energy_tol:
                 return EnergyStepControl(stepper, o.energy_tol, o.stop - o.start, order_of(self.exchange),
                                          o.step, self.tally)
+        if o.contact_steps:
+            return ContactSteps(stepper, self.exchange, o.step, o.contact_steps, self.tally)
         if o.tolerance:
             order = 2 if o.extrapolation == "linear" or o.iterate_tol else 1
             return StepDoubling(stepper, self.exchange, o.tolerance, o.stop - o.start, order, self.tally)
@@ -248,7 +260,7 @@ class Master:
             rows += 1
             if k + 1 == len(grid):
                 break
-            if options.tolerance or options.energy_tol:
+            if options.tolerance or options.energy_tol or options.contact_steps:
                 outcome = self.interval.advance(t, grid[k + 1])
             else:
                 outcome = self.interval.step(t, grid[k + 1] - t)
@@ -277,7 +289,7 @@ class Master:
         """The C loop, for plain fixed-step runs when it is built."""
         o = self.options
         if o.iterate_tol is not None or o.tolerance is not None or o.on_discard != "stop" or self.bonds is not None \
-                or not self.use_native:
+                or o.contact_steps or not self.use_native:
             return None
         core = load_core()
         if core is None:

@@ -38,12 +38,19 @@ def from_fmi2(fmi2_text: str, needs: dict[str, set[str]] | None = None,
     """The FMI 3.0 description of the FMU that `fmi2_text` describes. `needs` and `initial_needs` give,
     by name, the knowns ("time" for time) each output and state derivative depends on, and each initial
     unknown; where they are None, the FMI 2.0 description's own dependency lists are translated.
-    `event_indicators` names the variables of the event indicators, in their order."""
+    `event_indicators` names the variables of the event indicators, in their order; where it is empty, they
+    are the variables named `*_indicator`, as many as the description declares (a hand-written model's)."""
     root = ET.fromstring(fmi2_text)
     cs, me = root.find("CoSimulation"), root.find("ModelExchange")
     identifier = (cs if cs is not None else me).get("modelIdentifier")
     scalars = root.find("ModelVariables").findall("ScalarVariable")
     references = {v.get("name"): int(v.get("valueReference")) for v in scalars}
+    declared = int(root.get("numberOfEventIndicators", "0"))
+    if not event_indicators:
+        event_indicators = [name for name in references if name.endswith("_indicator")]
+    if len(event_indicators) != declared:
+        raise ValueError(f"{identifier}: numberOfEventIndicators is {declared}, but the description names "
+                         f"{len(event_indicators)} event indicator variables ({', '.join(event_indicators) or 'none'})")
     time_reference = max(references.values()) + 1
     references["time"] = time_reference
     by_index = {k: v for k, v in enumerate(scalars, start=1)}

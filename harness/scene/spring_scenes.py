@@ -10,13 +10,14 @@ from __future__ import annotations
 
 import math
 
-BOB = (("x", "x"), ("y", "y"), ("v_x", "vx"), ("v_y", "vy"))  # pendulum output, spring input suffix
+BOB = (("x", "x"), ("y", "y"), ("v_x", "vx"), ("v_y", "vy"))  # pendulum output, element input suffix
 
 
-def spring_joint(spring: str, end: str, pendulum: str, force: str = "F") -> list[list[str]]:
-    """The connections of one spring end at a pendulum's bob: position and velocity in, force back."""
-    return [[f"{pendulum}.{output}", f"{spring}.{end}_{suffix}"] for output, suffix in BOB] + \
-           [[f"{spring}.F{end}_{axis}", f"{pendulum}.{force}_{axis}"] for axis in "xy"]
+def element_joint(element: str, end: str, pendulum: str, force: str = "F") -> list[list[str]]:
+    """The connections of one end (a or b) of an element, a Spring or a Contact, at a pendulum's bob:
+    position and velocity in, force back."""
+    return [[f"{pendulum}.{output}", f"{element}.{end}_{suffix}"] for output, suffix in BOB] + \
+           [[f"{element}.F{end}_{axis}", f"{pendulum}.{force}_{axis}"] for axis in "xy"]
 
 
 def bob_bonds(pendulum: str, force: str = "F") -> list[list[str]]:
@@ -42,7 +43,7 @@ def pendulum_chain(n: int, spacing: float = 1.0, k: float = 10.0, released: int 
     for i, spring in enumerate(springs):
         components[spring] = {"fmu": "Spring", "start": {
             "k": k, "c": 0.0, "l0": spacing, "a_x": i * spacing, "a_y": -1.0, "b_x": (i + 1) * spacing, "b_y": -1.0}}
-        connections += spring_joint(spring, "a", pendulums[i], "F2") + spring_joint(spring, "b", pendulums[i + 1], "F")
+        connections += element_joint(spring, "a", pendulums[i], "F2") + element_joint(spring, "b", pendulums[i + 1], "F")
         bonds += bob_bonds(pendulums[i], "F2") + bob_bonds(pendulums[i + 1], "F")
     for i, pendulum in enumerate(pendulums):
         components[pendulum] = {"fmu": "SimplePendulum", "start": {

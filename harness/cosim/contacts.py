@@ -1,0 +1,159 @@
+"""Macro steps that see contacts: a control that lands a macro step on the onset of each contact, resolves
+the contact in steps sized for its duration, and lets the step grow again after the bodies part.
+
+A contact between two FMUs lasts a tenth of a millisecond for steel balls: a fixed macro step either
+steps over it or costs a million steps. The control watches every component with the outputs `gap` and
+`gap_rate` (the Contact element), which it reads at each macro step's end; it knows nothing of the law.
+
+* Apart (every gap >= 0): the step is the communication interval, unless a closing gap predicts its
+  onset sooner (tau = gap / -gap_rate). Then the step goes half way to the prediction, and again, until the
+  onset is less than one contact step away, and lands on it. The halving makes each later prediction
+  better (the element predicts the gap at a step's end from its inputs' values and slopes, exact to
+  O(H^3)), and the last, short steps land on the onset to a fraction of a contact step.
+* A step that ends with a gap below minus half a contact step's approach (the prediction failed: an
+  acceleration changed, a body arrived from outside the prediction) is rolled back through every unit's
+  FMU state and redone half way to the secant estimate of the onset, up to `MAX_LANDINGS` times; the
+  approach then lands on the onset as above.
+* In contact (a gap < 0): the overlap behaves locally as an oscillator of angular frequency omega^2 =
+  |d(gap_rate)/dt| / |gap|, so half a period pi / omega is the contact's duration; the step is that over
+  `steps_per_contact`, grown at most twofold per step. At an overlap shallower than one step's approach,
+  that approach stands in for |gap| (so the accelerations the bodies had apart do not read as a stiff
+  contact).
+* After the last contact ends, the step grows twofold per step back to the communication interval.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from harness.cosim.algorithms import DONE, Exchange, Outcome
+from harness.cosim.unit import Snapshot, Unit
+from harness.errors import HarnessError
+from harness.fmi.fmu_instance import DISCARD
+
+MAX_LANDINGS = 30  # rollbacks to land one step on an onset
+GROWTH = 2.0  # the largest ratio of one macro step to the one before, in and after contacts
+FIRST_CONTACT_STEP = 1e-4  # the contact step before any contact was seen, as a share of the interval
+LANDED = 1e-3  # an onset predicted within this share of a contact step is reached
+
+
+@dataclass(frozen=True)
+class Watch:
+    """A component's gap, its rate, and where they are among its outputs."""
+    unit: Unit
+    gap: int
+    rate: int
+
+    def values(self, exchange: Exchange, last_rate: float | None, last_step: float) -> tuple[float, float, float]:
+        """gap, gap_rate and the rate's derivative at the units' current time (the output derivative with
+        linear extrapolation, else the last step's difference)."""
+        gap, rate = float(self.unit.y_now[self.gap]), float(self.unit.y_now[self.rate])
+        if exchange.linear:
+            slope = float(self.unit.dy_now[self.rate])
+        else:
+            slope = (rate - last_rate) / last_step if last_rate is not None and last_step > 0 else 0.0
+        return gap, rate, slope
+
+
+def contact_watches(units: list[Unit]) -> list[Watch]:
+    """Every unit with the outputs gap and gap_rate."""
+    return [Watch(u, u.real_outputs.index("gap"), u.real_outputs.index("gap_rate")) for u in units
+            if "gap" in u.real_outputs and "gap_rate" in u.real_outputs]
+
+
+class ContactSteps:
+    """Macro steps inside [t, t_end] that land on each contact's onset and resolve the contact (see the
+    module's text). Counts its steps and rollbacks in the tally."""
+
+    def __init__(self, stepper, exchange: Exchange, largest: float, steps_per_contact: int, tally):
+        self.stepper, self.exchange, self.tally = stepper, exchange, tally
+        self.units = exchange.units
+        self.watches = contact_watches(self.units)
+        if not self.watches:
+            raise HarnessError("--contact-steps watches the gaps of Contact elements: the system has no component "
+                               "with the outputs gap and gap_rate")
+        lacking = [u.name for u in self.units if not u.can_save]
+        if lacking:
+            raise HarnessError(f"--contact-steps rolls back through FMU states, which {', '.join(lacking)} cannot "
+                               "save (canGetAndSetFMUstate is not true)")
+        self.largest, self.per_contact = largest, steps_per_contact
+        self.contact_step = largest * FIRST_CONTACT_STEP  # the last contact's step: where the next one starts
+        self.last_step = largest
+        self.last_rates: list[float | None] = [None] * len(self.watches)
+        self.landings = 0  # rollbacks to land on an onset
+        self.landed: list[float] = []  # the ends of the steps planned onto an onset
+        self._landing = False
+
+    def _state(self) -> list[tuple[float, float, float]]:
+        return [w.values(self.exchange, r, self.last_step) for w, r in zip(self.watches, self.last_rates)]
+
+    def _planned(self, state: list[tuple[float, float, float]], room: float) -> tuple[float, bool]:
+        """The next step (at most `room`) and whether any contact acts at its start."""
+        touching = [(g, r, a) for g, r, a in state if g < 0.0]
+        if touching:
+            # the overlap's own frequency, from the overlaps deeper than one step's approach: at a shallower one
+            # the accelerations the bodies have from elsewhere (a neighbour's push) would read as a stiff contact
+            deep = [(g, a) for g, r, a in touching if -g > abs(r) * self.last_step]
+            omega = max((math.sqrt(abs(a) / -g) for g, a in deep), default=0.0)
+            step = min(math.pi / omega / self.per_contact if omega > 0 else math.inf, GROWTH * self.last_step)
+            self.contact_step = step
+        else:
+            step = min(self.largest, GROWTH * self.last_step)
+        # the gaps that will cross zero: an onset ahead, or the end of a contact; halve the way, then land on it
+        crossing = [g / -r for g, r, _ in state if (g >= 0.0 and r < 0.0) or (g < 0.0 and r > 0.0)]
+        if crossing:
+            onset = min(crossing)
+            if onset <= self.contact_step * LANDED:  # on the onset already: into the contact
+                step = min(step, self.contact_step)
+            elif onset <= min(step, self.contact_step):
+                step, self._landing = onset, True
+            elif onset < 2 * step:
+                step = onset / 2
+        return min(step, room), bool(touching)
+
+    def advance(self, t: float, t_end: float) -> Outcome:
+        while t < t_end:
+            state = self._state()
+            self._landing = False
+            step, touching = self._planned(state, t_end - t)
+            last = step >= (t_end - t) * (1 - 1e-12)
+            if last:
+                step = t_end - t
+            with Snapshot(self.units, self.stepper) as start:
+                for landing in range(MAX_LANDINGS + 1):
+                    outcome = self.stepper.step(t, step)
+                    if outcome.status == DISCARD:
+                        return outcome
+                    if touching:
+                        break
+                    missed = self._overshoot(state, step)
+                    if missed is None or landing == MAX_LANDINGS:
+                        break
+                    start.restore()
+                    self.tally.retries += 1
+                    self.landings += 1
+                    step = missed / 2  # half way to the onset: the approach then lands on it as always
+                    last, self._landing = False, False
+            self.tally.macro_steps += 1
+            self.last_rates = [s[1] for s in state]
+            self.last_step = step
+            t = t_end if last else t + step
+            if self._landing:
+                self.landed.append(t)
+        return DONE
+
+    def _overshoot(self, before: list[tuple[float, float, float]], step: float) -> float | None:
+        """After a step that began apart: None where no gap fell below the landing depth, else the step to
+        the earliest secant estimate of an onset, from the gaps before and after. (The end of a contact is
+        not rolled back to: its force has faded to zero there.)"""
+        shortest = None
+        for watch, (g0, r0, _) in zip(self.watches, before):
+            g1 = float(watch.unit.y_now[watch.gap])
+            depth = 0.5 * abs(r0) * self.contact_step  # the approach of half a contact step, in gap
+            if g1 < -depth and g0 > 0.0:
+                guess = step * g0 / (g0 - g1)
+                shortest = guess if shortest is None else min(shortest, guess)
+        return shortest
+
