@@ -33,7 +33,8 @@ from harness.objects.registry import handwritten_names, object_names
 
 NAMES = [*object_names(), *handwritten_names()]
 START_TIME = 0.2718  # not a multiple of the Kapitza drive's half period (0.01 s), where its anchor rests
-GENERIC = {"d": 0.3, "c": 0.7}  # damping on, so that the velocities' dependencies show
+GENERIC = {"d": 0.3, "c": 0.7,  # damping on, so that the velocities' dependencies show
+           "R_a": 1.0, "R_b": 1.0}  # a Contact's bodies overlap wherever its inputs put the centres (at most 1.8 m apart)
 MOVED = 1e-11  # a change above this, relative to max(1, |value|), counts as moving
 
 
