@@ -328,6 +328,20 @@ def command_chart(args: argparse.Namespace) -> int:
         for name in dict.fromkeys(p.configuration for p in points):
             mine = [p for p in points if p.configuration == name]
             print(f"{name:32s} " + "  ".join(f"H={p.step:g}: {p.error:.1e} m" for p in mine))
+    elif args.kind == "contacts":
+        from harness.studies.charts import contact_chart
+        from harness.studies.contact_study import TARGET, contact_sweep, steps_needed, write_csv
+        from harness.fmi.fmus import PROJECT_ROOT
+        from harness.cosim.system import load_system
+        with load_system(args.system or PROJECT_ROOT / "scenes" / "contact_cradle.json") as system:
+            points = contact_sweep(system, stop=args.stop, repeats=args.repeats, quick=args.quick,
+                                   scheduler=args.scheduler, workers=args.workers)
+            title = system.name[:1].upper() + system.name[1:]
+        write_csv(points, out / "contacts.csv")
+        written = [out / "contacts.csv", *contact_chart(points, out, title)]
+        for name, steps in steps_needed(points).items():
+            print(f"{name:36s} macro steps at an error of {TARGET:g}: "
+                  + (f"{steps:.0f}" if steps == steps else "not bracketed by the runs"))
     print("wrote " + ", ".join(str(p) for p in written))
     return 0
 
@@ -431,8 +445,9 @@ def build_parser() -> argparse.ArgumentParser:
                         "--step is then the output interval and the largest macro step")
     p.add_argument("--out", default="run.csv", help="CSV file: time and <component>.<output> columns")
     p.add_argument("--reference", metavar="FILE.csv",
-                   help="also write the scene's derived monolithic solution (objects joined by Springs and Contacts) at the same "
-                        "communication points, under the same column names, for every state and output it determines")
+                   help="also write the scene's derived monolithic solution (objects joined by Springs and Contacts) "
+                        "at the same communication points, under the same column names, for every state and output "
+                        "it determines")
     p.add_argument("--quiet", action="store_true", help="no progress lines")
     p.set_defaults(run=command_run)
 
@@ -445,20 +460,24 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("fmu", nargs="+", help=".fmu files or the project's FMU names")
     p.set_defaults(run=command_validate)
 
-    p = sub.add_parser("chart", help="sweeps and their charts: work-precision, stability, long-run, coupling")
-    p.add_argument("kind", choices=["work-precision", "stability", "long-run", "coupling"], help="which sweep")
+    p = sub.add_parser("chart", help="sweeps and their charts: work-precision, stability, long-run, coupling, contacts")
+    p.add_argument("kind", choices=["work-precision", "stability", "long-run", "coupling", "contacts"],
+                   help="which sweep")
     p.add_argument("--out", default="charts", help="output folder for the CSV and the PNG/SVG charts")
     p.add_argument("--objects", nargs="+", metavar="NAME", help="objects to include, any of the registry's "
                    "(default: work-precision and long-run the three thesis pendulums, stability every object with a "
                    "linear model)")
     p.add_argument("--quick", action="store_true", help="work-precision and stability: every other step, "
-                   "tolerance and damping ratio; long-run: 1,000 periods instead of 10,000 (a chart in seconds)")
+                   "tolerance and damping ratio; long-run: 1,000 periods instead of 10,000 (a chart in seconds); contacts: "
+                   "no fixed step below 2e-6 s and at most 200 steps per contact")
     p.add_argument("--repeats", type=count(1000), default=3, help="timed repeats per point; the median is kept (default 3)")
     p.add_argument("--methods", nargs="+", metavar="NAME", help="work-precision: only these methods and peers "
                    "(the FMUs' methods, scipy-RK45, scipy-DOP853, scipy-LSODA, fmpy-CVode; default: all)")
     p.add_argument("--scene", "--system", dest="system",
-                   help="coupling: a scene of objects joined by Springs (default scenes/coupled_pendulums.json)")
-    p.add_argument("--stop", type=positive_number, help="coupling: simulated time [s] (default: the system's)")
+                   help="coupling: a scene of objects joined by Springs (default scenes/coupled_pendulums.json); "
+                        "contacts: one with Contact elements (default scenes/contact_cradle.json)")
+    p.add_argument("--stop", type=positive_number, help="coupling and contacts: simulated time [s] (default: the "
+                                                        "system's)")
     p.add_argument("--full", action="store_true", help="stability: the full atlas (19 damping ratios instead of 8)")
     p.add_argument("--workers", type=count(256), help="parallel worker processes (default: all local cores)")
     p.add_argument("--scheduler", metavar="ADDRESS",

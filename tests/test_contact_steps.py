@@ -108,3 +108,27 @@ def test_contact_steps_choose_the_steps_alone():
         MasterOptions(stop=1.0, step=0.1, contact_steps=10, tolerance=1e-3)
     with pytest.raises(HarnessError, match="from 1 to 100000"):
         MasterOptions(stop=1.0, step=0.1, contact_steps=0)
+
+
+@pytest.fixture(scope="module")
+def contact_chart(tmp_path_factory):
+    out = tmp_path_factory.mktemp("contacts")
+    assert main(["chart", "contacts", "--quick", "--repeats", "1", "--stop", "0.3", "--out", str(out)]) == 0
+    from harness.studies.contact_study import read_csv
+    return out, read_csv(out / "contacts.csv")
+
+
+def test_the_contact_chart_shows_what_its_page_claims(contact_chart):
+    """On the cradle up to just past the strike: the impact-aware master at 100 steps per contact errs less
+    than the best fixed-step master at 2e-6 s, with a hundredth of its macro steps; held inputs err at first
+    order (a tenth and more); the energy correction keeps the energy created per onset below 1e-6; the
+    energy step control, which cannot roll back, does not survive the strike."""
+    out, points = contact_chart
+    assert {(out / f"contacts.{suffix}").is_file() for suffix in ("csv", "png", "svg")} == {True}
+    run = {(p.master, p.setting): p for p in points}
+    aware = run["contact steps", "N = 100"]
+    fixed = run["fixed step, gauss-seidel, linear", "H = 2e-06 s"]
+    assert aware.error < fixed.error and 100 * aware.macro_steps < fixed.macro_steps
+    assert run["fixed step, gauss-seidel, hold", "H = 2e-06 s"].error > 0.01
+    assert abs(run["contact steps, energy correction", "N = 100"].per_onset) < 1e-6
+    assert not run["energy step control", "0.001 J"].error < 0.1

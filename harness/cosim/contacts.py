@@ -31,12 +31,13 @@ import numpy as np
 from harness.cosim.algorithms import DONE, Exchange, Outcome
 from harness.cosim.unit import Snapshot, Unit
 from harness.errors import HarnessError
-from harness.fmi.fmu_instance import DISCARD
+from harness.fmi.fmu_instance import DISCARD, ERROR
 
 MAX_LANDINGS = 30  # rollbacks to land one step on an onset
 GROWTH = 2.0  # the largest ratio of one macro step to the one before, in and after contacts
 FIRST_CONTACT_STEP = 1e-4  # the contact step before any contact was seen, as a share of the interval
 LANDED = 1e-3  # an onset predicted within this share of a contact step is reached
+SMALLEST = 2.0 ** -40  # the smallest macro step, as a share of the interval: below it the run stops, named
 
 
 @dataclass(frozen=True)
@@ -84,6 +85,7 @@ class ContactSteps:
         self.last_rates: list[float | None] = [None] * len(self.watches)
         self.landings = 0  # rollbacks to land on an onset
         self.landed: list[float] = []  # the ends of the steps planned onto an onset
+        self.failure = ""  # why the control stopped a run
         self._landing = False
 
     def _state(self) -> list[tuple[float, float, float]]:
@@ -119,6 +121,9 @@ class ContactSteps:
             self._landing = False
             step, touching = self._planned(state, t_end - t)
             last = step >= (t_end - t) * (1 - 1e-12)
+            if not last and step < self.largest * SMALLEST:
+                self.failure = f"the contact steps fell below {self.largest * SMALLEST:.3g} s after t = {t:.17g}"
+                return Outcome(ERROR)
             if last:
                 step = t_end - t
             with Snapshot(self.units, self.stepper) as start:

@@ -267,7 +267,8 @@ class Master:
                 tally.macro_steps += outcome.status == OK
             if outcome.status == ERROR:
                 stopped_at = t
-                message = f"step doubling could not meet the tolerance {options.tolerance:g} after t = {t:g}"
+                message = getattr(self.interval, "failure", "") or \
+                    f"step doubling could not meet the tolerance {options.tolerance:g} after t = {t:g}"
                 break
             if outcome.status == DISCARD:
                 culprit = outcome.culprit

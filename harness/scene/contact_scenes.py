@@ -7,9 +7,20 @@ the step itself).
 """
 from __future__ import annotations
 
+import math
+
 from harness.scene.spring_scenes import bob_bonds, element_joint
 
 STEEL_STIFFNESS = 1.465e10  # Hertz stiffness of two steel balls of radius 0.02 m [N/m^1.5] (as the HertzCradle's)
+TIP = ("x2", "y2", "v_x", "v_y")  # a DoublePendulum's tip
+CART = ("cart_x", "cart_y", "cart_v_x", "cart_v_y")  # a CartPendulum's cart
+
+
+def hertz_stiffness(radius_a: float, radius_b: float, modulus: float = 200e9, poisson: float = 0.3) -> float:
+    """Hertz's k = 4/3 E* sqrt(R*) of two spheres of one material, E* = E / (2 (1 - nu^2)) and
+    R* = R_a R_b / (R_a + R_b) (steel by default), to four digits [N/m^1.5]."""
+    k = 4 / 3 * modulus / (2 * (1 - poisson ** 2)) * math.sqrt(radius_a * radius_b / (radius_a + radius_b))
+    return float(f"{k:.4g}")
 
 
 def pendulum_cradle(n: int = 5, length: float = 0.3, mass: float = 0.25, radius: float = 0.02,
@@ -47,6 +58,59 @@ def pendulum_cradle(n: int = 5, length: float = 0.3, mass: float = 0.25, radius:
         "components": components, "connections": connections, "bonds": bonds}
 
 
+def double_strikes_ball(radius: float = 0.05, angle: float = -0.6, stop: float = 1.5, step: float = 1e-5) -> dict:
+    """A double pendulum (links of 1 m) whose tip, a steel ball, swings from `angle` into a steel ball of
+    0.5 kg resting on a string of 2 m (a SimplePendulum: the string stays taut, its tension well above zero)."""
+    k = hertz_stiffness(radius, radius)
+    components = {
+        "contact": {"fmu": "Contact", "start": {"k": k, "c": 0.0, "R_a": radius, "R_b": radius,
+                                                "a_x": -2 * radius, "a_y": -2.0, "b_x": 0.0, "b_y": -2.0}},
+        "double": {"fmu": "DoublePendulum", "start": {"anchor_x": -2 * radius, "phi1": angle, "phi2": angle,
+                                                      "solver": "nystrom5", "h": 1e-4},
+                   "traces": [["x1", "y1"], ["x2", "y2"]]},
+        "ball": {"fmu": "SimplePendulum", "start": {"L": 2.0, "m": 0.5, "phi": 0.0, "solver": "nystrom5", "h": 1e-4},
+                 "traces": [["x", "y"]]},
+    }
+    connections = element_joint("contact", "a", "double", outputs=TIP) + element_joint("contact", "b", "ball")
+    bonds = [["double.F_x", "double.v_x", "double.x2"], ["double.F_y", "double.v_y", "double.y2"], *bob_bonds("ball")]
+    return {
+        "name": "double pendulum strikes a ball",
+        "description": f"A double pendulum (links of 1 m, 1 kg each) is let go from {angle:g} rad; its tip, a steel "
+                       f"ball of radius {radius:g} m, strikes a steel ball of 0.5 kg resting on a string of 2 m beside it "
+                       "(a Contact element between them). The contact lasts about a tenth of a millisecond.",
+        "stop": stop, "step": step, "accuracy": {"position": 0.001},
+        "camera": {"scale": 150.0, "frame_rate": 25},
+        "components": components, "connections": connections, "bonds": bonds}
+
+
+def colliding_carts(radius: float = 0.1, speed: float = 1.0, stop: float = 1.5, step: float = 1e-5) -> dict:
+    """Two cart-pendulums on one rail, their carts bodies of `radius` with steel's stiffness: the left one rolls
+    at `speed` into the right one at rest; the carts exchange most of their motion and both pendulums swing."""
+    k = hertz_stiffness(radius, radius)
+    components = {
+        "contact": {"fmu": "Contact", "start": {"k": k, "c": 0.0, "R_a": radius, "R_b": radius,
+                                                "a_x": -0.5, "b_x": 0.5}},
+        "left": {"fmu": "CartPendulum", "start": {"x": -0.5, "v": speed, "phi": 0.0, "solver": "nystrom5", "h": 1e-4},
+                 "traces": [["cart_x", "cart_y"], ["bob_x", "bob_y"]]},
+        "right": {"fmu": "CartPendulum", "start": {"x": 0.5, "v": 0.0, "phi": 0.0, "solver": "nystrom5", "h": 1e-4},
+                  "traces": [["cart_x", "cart_y"], ["bob_x", "bob_y"]]},
+    }
+    connections = element_joint("contact", "a", "left", outputs=CART) + \
+        element_joint("contact", "b", "right", outputs=CART)
+    bonds = [[f"{cart}.F_{axis}", f"{cart}.cart_v_{axis}", f"{cart}.cart_{axis}"] for cart in ("left", "right")
+             for axis in "xy"]
+    return {
+        "name": "two carts collide",
+        "description": f"Two cart-pendulums (carts of 2 kg, bobs of 0.5 kg on 0.8 m) on one rail: the left cart rolls "
+                       f"at {speed:g} m/s into the right one at rest; a Contact element with steel's stiffness between "
+                       f"the carts (bodies of radius {radius:g} m). The carts exchange most of their motion, and both "
+                       "pendulums swing.",
+        "stop": stop, "step": step, "accuracy": {"position": 0.001},
+        "camera": {"scale": 200.0, "frame_rate": 25},
+        "components": components, "connections": connections, "bonds": bonds}
+
+
 def repository_scenes() -> dict[str, dict]:
     """The scene files in scenes/ that these rules write, by file name."""
-    return {"contact_cradle.json": pendulum_cradle()}
+    return {"contact_cradle.json": pendulum_cradle(), "double_strikes_ball.json": double_strikes_ball(),
+            "colliding_carts.json": colliding_carts()}

@@ -13,11 +13,13 @@ import math
 BOB = (("x", "x"), ("y", "y"), ("v_x", "vx"), ("v_y", "vy"))  # pendulum output, element input suffix
 
 
-def element_joint(element: str, end: str, pendulum: str, force: str = "F") -> list[list[str]]:
-    """The connections of one end (a or b) of an element, a Spring or a Contact, at a pendulum's bob:
-    position and velocity in, force back."""
-    return [[f"{pendulum}.{output}", f"{element}.{end}_{suffix}"] for output, suffix in BOB] + \
-           [[f"{element}.F{end}_{axis}", f"{pendulum}.{force}_{axis}"] for axis in "xy"]
+def element_joint(element: str, end: str, body: str, force: str = "F",
+                  outputs: tuple[str, str, str, str] = ("x", "y", "v_x", "v_y")) -> list[list[str]]:
+    """The connections of one end (a or b) of an element, a Spring or a Contact, at a body's point (by
+    default a pendulum's bob; `outputs` names the point's x, y, v_x and v_y): position and velocity in,
+    force back."""
+    return [[f"{body}.{output}", f"{element}.{end}_{suffix}"] for output, (_, suffix) in zip(outputs, BOB)] + \
+           [[f"{element}.F{end}_{axis}", f"{body}.{force}_{axis}"] for axis in "xy"]
 
 
 def bob_bonds(pendulum: str, force: str = "F") -> list[list[str]]:

@@ -443,12 +443,58 @@ def coupling_figure(points, scene: str = "Coupled pendulums"):
     return figure, tips
 
 
-def coupling_chart(points, out: Path, scene: str = "Coupled pendulums") -> list[Path]:
+def _scene_chart(figure_of, points, out: Path, stem: str, scene: str) -> list[Path]:
+    """A scene's chart saved as `stem`; what cannot be drawn names the CSV it came from."""
     try:
-        figure, tips = coupling_figure(points, scene)
+        figure, tips = figure_of(points, scene)
     except HarnessError as error:
-        raise HarnessError(f"{out / 'coupling.csv'}: {error}") from None
-    return save(figure, out, "coupling", tips)
+        raise HarnessError(f"{out / (stem + '.csv')}: {error}") from None
+    return save(figure, out, stem, tips)
+
+
+def coupling_chart(points, out: Path, scene: str = "Coupled pendulums") -> list[Path]:
+    return _scene_chart(coupling_figure, points, out, "coupling", scene)
+
+
+def contact_figure(points, scene: str = "Newton's cradle of 5 FMUs"):
+    """The masters on a contact scene: the error of the outgoing velocities against macro steps and against
+    seconds, and the energy created per contact onset against macro steps."""
+    masters = list(dict.fromkeys(p.master for p in points))
+    finite = [p for p in points if math.isfinite(p.error) and p.error > 0]
+    if not finite:
+        raise HarnessError("contacts: every run stopped before its end (no finite error to chart); see the CSV")
+    figure, axes = plt.subplots(1, 3, figsize=(WIDTH, 3.9), layout="constrained")
+    tips = Tooltips("contacts")
+    panels = ((axes[0], "macro_steps", "error", "macro steps"),
+              (axes[1], "seconds", "error", "run time [s], median of repeats"),
+              (axes[2], "macro_steps", "per_onset", "macro steps"))
+    for k, name in enumerate(masters):
+        mine = sorted((p for p in finite if p.master == name), key=lambda p: p.macro_steps)
+        style = dict(color=COLOURS[k % len(COLOURS)], marker=COUPLING_MARKERS[k % len(COUPLING_MARKERS)],
+                     markersize=4.5)
+        for ax, x, y, _ in panels:
+            values = [(getattr(p, x), abs(getattr(p, y))) for p in mine if abs(getattr(p, y)) > 0]
+            ax.plot([v[0] for v in values], [v[1] for v in values], color=style["color"], linewidth=1.3)
+            for p in mine:
+                if abs(getattr(p, y)) > 0:
+                    tips.point(ax, getattr(p, x), abs(getattr(p, y)),
+                               f"{name}, {p.setting}: {p.macro_steps} macro steps, velocity error {p.error:.2g}, "
+                               f"energy created {p.energy:.2g} ({p.per_onset:.2g} per onset), {p.seconds:.3g} s",
+                               **style)
+    for ax, _, y, label in panels:
+        log_axes(ax)
+        ax.set_xlabel(label, fontsize=8.5)
+    axes[0].set_ylabel("error of the outgoing velocities (relative)", fontsize=8.5)
+    axes[2].set_ylabel("|energy created| per contact onset (relative)", fontsize=8.5)
+    handles = [Line2D([], [], color=COLOURS[k % len(COLOURS)], marker=COUPLING_MARKERS[k % len(COUPLING_MARKERS)])
+               for k in range(len(masters))]
+    figure.legend(handles, masters, loc="outside lower center", ncol=3, fontsize=8, frameon=False)
+    figure.suptitle(f"{scene}: masters against a monolithic reference with its contacts located as events", fontsize=10)
+    return figure, tips
+
+
+def contact_chart(points, out: Path, scene: str = "Newton's cradle of 5 FMUs") -> list[Path]:
+    return _scene_chart(contact_figure, points, out, "contacts", scene)
 
 
 LONG_RUN_ERRORS = (1e-9, 1e4)  # the y range: symmetric methods' bands to blown-up runs
@@ -511,6 +557,9 @@ def redraw(folder: Path) -> list[Path]:
                                         folder)
     if (folder / "coupling.csv").is_file():
         written_paths += coupling_chart(coupling.read_csv(folder / "coupling.csv"), folder)
+    if (folder / "contacts.csv").is_file():
+        from harness.studies import contact_study
+        written_paths += contact_chart(contact_study.read_csv(folder / "contacts.csv"), folder)
     if (folder / "stability.csv").is_file():
         from harness.fmi.fmus import build_dir, build_fmus
         limits = stability.read_csv(folder / "stability.csv")
@@ -522,7 +571,8 @@ def redraw(folder: Path) -> list[Path]:
         chosen = [c for c in every if (c.object, round(c.damping, 12), c.release) in keys]
         written_paths += stability_charts(limits, chosen, stability.atlas_tables(), folder)
     if not written_paths:
-        raise HarnessError(f"{folder}: no work-precision.csv, long-run.csv, coupling.csv or stability.csv to draw")
+        raise HarnessError(f"{folder}: no work-precision.csv, long-run.csv, coupling.csv, contacts.csv or "
+                           "stability.csv to draw")
     return written_paths
 
 

@@ -73,17 +73,23 @@ def coupling_error(result, reference: dict[str, np.ndarray], pairs: list[tuple[s
     return largest_point_error(result, {name: column[rows] for name, column in reference.items()}, pairs)
 
 
+def timed_runs(system: System, options: MasterOptions, repeats: int):
+    """The last of `repeats` runs and the median of their seconds (loading and instantiating not timed)."""
+    times, result = [], None
+    for _ in range(repeats):
+        with Master(system, options) as master:
+            start = time.perf_counter()
+            result = master.run()
+            times.append(time.perf_counter() - start)
+    return result, statistics.median(times)
+
+
 def measure(job: tuple) -> CouplingPoint:
     """One configuration at one communication step (runs in a worker)."""
     system, (algorithm, extrapolation, iterate), step, stop, repeats, (reference, pairs) = job
     options = MasterOptions(stop=stop, step=step, algorithm=algorithm, extrapolation=extrapolation,
                             iterate_tol=iterate)
-    times, result = [], None
-    for _ in range(repeats):
-        with Master(system, options) as master:  # loading and instantiating are not timed
-            start = time.perf_counter()
-            result = master.run()
-            times.append(time.perf_counter() - start)
+    result, seconds = timed_runs(system, options, repeats)
     # Every pass over a macro step steps each component once. A rolled-back pass restores the FMUs'
     # counters with their state, so its evaluations are counted at the kept pass's (fixed-step work).
     passes = result.iterations if iterate is not None else result.macro_steps + result.retries
@@ -91,8 +97,7 @@ def measure(job: tuple) -> CouplingPoint:
     kept = sum(int(result[c][-1]) for c in result.columns if c.endswith(".n_rhs"))
     rhs = round(kept * passes / max(result.macro_steps, 1))
     return CouplingPoint(algorithm, extrapolation, math.nan if iterate is None else iterate, step,
-                         coupling_error(result, reference, pairs), rhs, do_steps,
-                         statistics.median(times))
+                         coupling_error(result, reference, pairs), rhs, do_steps, seconds)
 
 
 def coupling_sweep(system: System, stop: float | None = None, steps=STEPS, configurations=CONFIGURATIONS,

@@ -1,0 +1,66 @@
+#!/usr/bin/env python3
+"""The master that sees impacts against the fixed-step masters and the energy step control, on Newton's
+cradle of five pendulum FMUs joined by four Contact elements (scenes/contact_cradle.json: steel balls,
+ball 1 let go from 0.5 rad, the strike at 0.279 s), side by side in one run, one master after the other
+in this process.
+
+The masters and what is measured are the contact study's (harness/studies/contact_study.py, also
+`harness chart contacts`): each runs the scene to 0.3 s, just past the strike, against the scene's
+monolithic reference (its contacts located as events); the error is that of the balls' outgoing
+velocities relative to the fastest, the energy created is relative to the cradle's largest kinetic energy
+and given per contact onset. Macro steps are machine-independent; seconds are this machine's. Then the
+macro steps each master needs for an error of 1e-4 (log-log interpolation between the bracketing runs) and
+the ratio of the best fixed-step master's to the impact-aware master's (goal: at least 20), and the energy
+the impact-aware master creates per contact onset (goal: below 1e-6 of the cradle's energy).
+
+Usage: python benchmarks/contact_benchmark.py [--quick] [--repeats 3]
+"""
+from __future__ import annotations
+
+import argparse
+import math
+import sys
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parent.parent
+sys.path.insert(0, str(ROOT))
+
+from harness.cosim.system import load_system  # noqa: E402
+from harness.fmi.fmus import build_fmus  # noqa: E402
+from harness.studies.contact_study import TARGET, contact_sweep, steps_needed  # noqa: E402
+
+STOP = 0.3
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--quick", action="store_true",
+                        help="no fixed step below 2e-6 s, at most 200 steps per contact")
+    parser.add_argument("--repeats", type=int, default=3, help="timed repeats per run; the median is kept")
+    args = parser.parse_args(argv)
+    build_fmus()
+    with load_system(ROOT / "scenes" / "contact_cradle.json") as system:
+        points = contact_sweep(system, stop=STOP, repeats=args.repeats, quick=args.quick, workers=1)
+    print(f"{'master':36s} {'setting':14s} {'macro steps':>11s} {'error':>9s} {'energy':>10s} {'per onset':>10s} "
+          f"{'seconds':>8s}")
+    for p in points:
+        print(f"{p.master:36s} {p.setting:14s} {p.macro_steps:11d} {p.error:9.2e} {p.energy:10.2e} "
+              f"{p.per_onset:10.2e} {p.seconds:8.3f}")
+    needed = steps_needed(points)
+    print(f"\nmacro steps at an error of {TARGET:g} (between the bracketing runs):")
+    for name, steps in needed.items():
+        print(f"  {name:36s} " + (f"{steps:10.0f}" if math.isfinite(steps) else "not bracketed"))
+    fixed = [s for name, s in needed.items() if name.startswith("fixed") and math.isfinite(s)]
+    aware = needed["contact steps"]
+    if fixed and math.isfinite(aware):
+        print(f"the best fixed-step master takes {min(fixed) / aware:.0f} times the macro steps of the impact-aware "
+              "master at that error (goal: at least 20)")
+    reaching = [p for p in points if p.master.startswith("contact steps") and p.error <= TARGET]
+    for p in reaching:
+        print(f"{p.master}, {p.setting}: error {p.error:.2g}, energy created per contact onset {abs(p.per_onset):.2g} "
+              "of the largest kinetic energy (goal: below 1e-6)")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
