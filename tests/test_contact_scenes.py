@@ -112,3 +112,11 @@ def test_the_other_contact_scenes_meet_their_references(scene, columns, bound):
     assert result.macro_steps < 1000
     if "ball.rod_tension" in result.columns:
         assert np.min(result["ball.rod_tension"]) > 1.0
+
+
+def test_the_coupling_chart_sends_a_contact_scene_to_the_contact_chart(capsys, tmp_path):
+    from harness.cli import main
+    assert main(["chart", "coupling", "--scene", str(SCENES / "contact_cradle.json"), "--out", str(tmp_path)]) == 2
+    err = capsys.readouterr().err
+    assert "step over: chart it with `harness chart contacts`" in err and err.count("\n") == 1, err
+    assert not (tmp_path / "coupling.csv").exists()

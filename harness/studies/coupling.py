@@ -52,6 +52,10 @@ def derived_reference(system: System, times: np.ndarray) -> tuple[dict[str, np.n
     (x, y) column pairs of every object point. Refuses a scene it cannot derive, and FMI 3.0
     components, which take no input derivatives (the studies compare linear extrapolation)."""
     scene = MonolithicScene(system)
+    if scene.contacts:
+        raise HarnessError(f"{system.name}: its Contact elements' contacts last about a tenth of a millisecond, "
+                           f"which the coupling chart's macro steps ({max(STEPS):g} to {min(STEPS):g} s) step over: "
+                           "chart it with `harness chart contacts`")
     newer = [name for name, version in scene.fmi_versions.items() if version != "2.0"]
     if newer:
         raise HarnessError(f"{system.name}: the coupling studies compare linear extrapolation and iterated steps, "
