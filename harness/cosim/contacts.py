@@ -13,7 +13,8 @@ steps over it or costs a million steps. The control watches every component with
 * A step that ends with a gap below minus half a contact step's approach (the prediction failed: an
   acceleration changed, a body arrived from outside the prediction) is rolled back through every unit's
   FMU state and redone half way to the secant estimate of the onset, up to `MAX_LANDINGS` times; the
-  approach then lands on the onset as above.
+  approach then lands on the onset as above. Only a step that begins apart can overshoot: the FMU states
+  are saved before those alone.
 * In contact (a gap < 0): the overlap behaves locally as an oscillator of angular frequency omega^2 =
   |d(gap_rate)/dt| / |gap|, so half a period pi / omega is the contact's duration; the step is that over
   `steps_per_contact`, grown at most twofold per step. At an overlap shallower than one step's approach,
@@ -126,21 +127,14 @@ class ContactSteps:
                 return Outcome(ERROR)
             if last:
                 step = t_end - t
-            with Snapshot(self.units, self.stepper) as start:
-                for landing in range(MAX_LANDINGS + 1):
-                    outcome = self.stepper.step(t, step)
-                    if outcome.status == DISCARD:
-                        return outcome
-                    if touching:
-                        break
-                    missed = self._overshoot(state, step)
-                    if missed is None or landing == MAX_LANDINGS:
-                        break
-                    start.restore()
-                    self.tally.retries += 1
-                    self.landings += 1
-                    step = missed / 2  # half way to the onset: the approach then lands on it as always
-                    last, self._landing = False, False
+            if touching:  # inside a contact no step is rolled back: no FMU states to save
+                outcome = self.stepper.step(t, step)
+                if outcome.status == DISCARD:
+                    return outcome
+            else:
+                step, last = self._landed_step(t, step, last, state)
+                if step is None:
+                    return last
             self.tally.macro_steps += 1
             self.last_rates = [s[1] for s in state]
             self.last_step = step
@@ -148,6 +142,24 @@ class ContactSteps:
             if self._landing:
                 self.landed.append(t)
         return DONE
+
+    def _landed_step(self, t: float, step: float, last: bool, state: list[tuple[float, float, float]]):
+        """A step that began apart, rolled back and redone half way to the onset where it overshot one: the
+        step taken and whether it ends the interval, or (None, the discard)."""
+        with Snapshot(self.units, self.stepper) as start:
+            for landing in range(MAX_LANDINGS + 1):
+                outcome = self.stepper.step(t, step)
+                if outcome.status == DISCARD:
+                    return None, outcome
+                missed = self._overshoot(state, step)
+                if missed is None or landing == MAX_LANDINGS:
+                    break
+                start.restore()
+                self.tally.retries += 1
+                self.landings += 1
+                step = missed / 2  # half way to the onset: the approach then lands on it as always
+                last, self._landing = False, False
+        return step, last
 
     def _overshoot(self, before: list[tuple[float, float, float]], step: float) -> float | None:
         """After a step that began apart: None where no gap fell below the landing depth, else the step to
