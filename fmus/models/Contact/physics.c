@@ -91,12 +91,12 @@ int model_outputs(const ModelConst *c, double t, const double *dx, double *real)
     return g.r > 0.0; /* centres at one point: no direction to push along */
 }
 
-/* The change of the outputs along a change dp of b - a and dw of v_b - v_a: the time rates for
+/* The change of the outputs at the geometry `at` along a change dp of b - a and dw of v_b - v_a: the time rates for
  * (dp, dw) = (v_b - v_a, the velocities' slopes), a directional derivative for a seed. */
-static void output_change(const ModelConst *c, const double *real, const double *dp, const double *dw,
+static void output_change(const ModelConst *c, const Geometry *at, const double *dp, const double *dw,
                           double *change)
 {
-    const Geometry g = geometry(real);
+    const Geometry g = *at;
     double e[3], de[3], dr, rate, drate, magnitude, by_delta, by_rate, dmagnitude;
     int i;
     if (!(g.r > 0.0)) { /* undefined there (model_outputs refuses the point): no change to report */
@@ -126,12 +126,13 @@ void model_output_rates(const ModelConst *c, double t, const double *real, const
     const Geometry g = geometry(real);
     const double slope[3] = {du[IN_BV] - du[IN_AV], du[IN_BV + 1] - du[IN_AV + 1], du[IN_BV + 2] - du[IN_AV + 2]};
     (void)t, (void)dx;
-    output_change(c, real, g.w, slope, rate);
+    output_change(c, &g, g.w, slope, rate);
 }
 
 void model_directional(const ModelConst *c, double t, const double *real, const double *dx, const double *seed_x,
                        const double *seed_u, double *ddx, double *change)
 {
+    const Geometry g = geometry(real);
     double dp[3], dw[3];
     int i;
     (void)t, (void)dx, (void)seed_x, (void)ddx;
@@ -139,7 +140,7 @@ void model_directional(const ModelConst *c, double t, const double *real, const 
         dp[i] = seed_u[IN_B + i] - seed_u[IN_A + i];
         dw[i] = seed_u[IN_BV + i] - seed_u[IN_AV + i];
     }
-    output_change(c, real, dp, dw, change);
+    output_change(c, &g, dp, dw, change);
 }
 
 void model_event_indicators(const ModelConst *c, double t, const double *real, double *z)
