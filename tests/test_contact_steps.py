@@ -88,6 +88,7 @@ def test_a_failed_prediction_is_rolled_back_onto_the_onset(strike, monkeypatch):
 
     monkeypatch.setattr(ContactSteps, "_planned", overshooting)
     with Master(system, MasterOptions(stop=STOP, step=STOP / 4, contact_steps=100)) as master:
+        master.use_native = False  # the plan planted is the Python loop's
         result = master.run()
         landings, landed = master.interval.landings, master.interval.landed
     assert faulted["done"] and landings >= 1 and result.retries == landings
@@ -154,3 +155,81 @@ def test_fmi3_components_take_the_contact_steps_with_held_inputs(strike, tmp_pat
         assert np.array_equal(three.values, two.values)
         errors.append(rate_error(three, reference))
     assert 1.7 < errors[0] / errors[1] < 2.3 and errors[0] < 0.03, errors
+
+
+def dropped_cradle(tmp_path: Path, fmi3: bool = False):
+    """The cradle with ball 1 released from rest 0.05 rad out, at a communication interval of 0.5 s: the first
+    steps see no closing gap (the rate is zero), so the fall overshoots the onset and is rolled back."""
+    data = pendulum_cradle(5, angle=-0.05, stop=1.0, step=0.5)
+    if fmi3:
+        for component in data["components"].values():
+            component["fmu"] = "fmi3/" + component["fmu"]
+    path = tmp_path / f"dropped{3 if fmi3 else 2}.json"
+    path.write_text(json.dumps(data))
+    return load_system(path)
+
+
+def both_loops(system, **options) -> list[tuple]:
+    """The run in the C loop, then in the Python loop: the result, the landed onsets, the rollbacks and the FMU
+    states left unreleased."""
+    runs = []
+    for native in (True, False):
+        with Master(system, MasterOptions(stop=system.stop, step=system.step, **options)) as master:
+            master.use_native = native
+            result = master.run()
+            runs.append((result, master.interval.landed, master.interval.landings,
+                         sum(unit.live_states for unit in master.units)))
+    return runs
+
+
+@pytest.mark.parametrize("algorithm", ["gauss-seidel", "jacobi"])
+def test_the_c_loop_takes_the_python_loops_contact_steps(strike, tmp_path, algorithm):
+    """The contact steps in C (harness/cosim/native/cosim_core.c) give the Python loop's numbers bit for bit:
+    the strike, and a fall whose onset the prediction misses, rolled back (four times) in FMI 2.0 and 3.0
+    alike; every FMU state saved is released."""
+    system = strike[0]
+    for scene, options in ((system, {}), (dropped_cradle(tmp_path), {}),
+                           (dropped_cradle(tmp_path, fmi3=True), {})):
+        (c, c_landed, c_landings, c_live), (py, py_landed, py_landings, py_live) = both_loops(
+            scene, contact_steps=50, algorithm=algorithm, **options)
+        assert np.array_equal(c.values, py.values) and np.array_equal(c.energy, py.energy, equal_nan=True)
+        assert (c.macro_steps, c.retries, c_landed, c_landings) == (py.macro_steps, py.retries, py_landed, py_landings)
+        assert c_live == py_live == 0
+        assert c.stopped_at is None and py.stopped_at is None
+        if scene is not system:
+            assert c_landings >= 2 and c.retries == c_landings, c_landings
+
+
+def test_a_step_cut_by_the_interval_end_does_not_shrink_the_next(tmp_path):
+    """Apart, the carts take one macro step per communication interval, also where the time's rounding leaves
+    the last step of an interval one rounding short of its end (from 0.5 s on, at 1e-5 s: before, each such
+    step restarted the growth from 1e-16 s, ten times the steps)."""
+    system = load_system(PROJECT_ROOT / "scenes" / "colliding_carts.json")
+    result = run_system(system, MasterOptions(start=0.5, stop=0.6, step=system.step, contact_steps=20))
+    intervals = len(result.values) - 1
+    assert intervals == 10_000 and result.macro_steps <= intervals + 100, result.macro_steps
+
+
+def test_an_onset_missed_by_a_rounding_is_kept_at_the_landing_precision(strike, monkeypatch):
+    """A step that overshoots an onset the secant puts 1e-20 s ahead (a grazing contact) is redone no shorter
+    than a thousandth of a contact step, and kept: the run goes on, no step below that."""
+    system = strike[0]
+    steps = []
+    taken, overshoot = ContactSteps._landed_step, ContactSteps._overshoot
+
+    def recording(self, t, step, last, state):
+        out = taken(self, t, step, last, state)
+        steps.append((out[0], self.contact_step))
+        return out
+
+    def grazing(self, before, step):  # the first step's overshoot, as a grazing contact's
+        return 1e-20 if not steps else overshoot(self, before, step)
+
+    monkeypatch.setattr(ContactSteps, "_overshoot", grazing)
+    monkeypatch.setattr(ContactSteps, "_landed_step", recording)
+    with Master(system, MasterOptions(stop=STOP, step=STOP / 4, contact_steps=20)) as master:
+        master.use_native = False
+        result = master.run()
+    assert result.stopped_at is None and result.retries == 1
+    first, contact_step = steps[0]
+    assert first == contact_step * 1e-3, steps[0]

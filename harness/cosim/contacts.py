@@ -12,8 +12,9 @@ steps over it or costs a million steps. The control watches every component with
   O(H^3)), and the last, short steps land on the onset to a fraction of a contact step.
 * A step that ends with a gap below minus half a contact step's approach (the prediction failed: an
   acceleration changed, a body arrived from outside the prediction) is rolled back through every unit's
-  FMU state and redone half way to the secant estimate of the onset, up to `MAX_LANDINGS` times; the
-  approach then lands on the onset as above. Only a step that begins apart can overshoot: the FMU states
+  FMU state and redone half way to the secant estimate of the onset (but no shorter than the landing
+  precision, a thousandth of a contact step: a step that short is kept even if it overshoots, as a
+  grazing contact's does), up to `MAX_LANDINGS` times; the approach then lands on the onset as above. Only a step that begins apart can overshoot: the FMU states
   are saved before those alone.
 * In contact (a gap < 0): the overlap behaves locally as an oscillator of angular frequency omega^2 =
   |d(gap_rate)/dt| / |gap|, so half a period pi / omega is the contact's duration; the step is that over
@@ -82,12 +83,17 @@ class ContactSteps:
                                "save (canGetAndSetFMUstate is not true)")
         self.largest, self.per_contact = largest, steps_per_contact
         self.contact_step = largest * FIRST_CONTACT_STEP  # the last contact's step: where the next one starts
-        self.last_step = largest
+        self.last_step = largest  # the step taken last: the held inputs' slope divides by it
+        self.size = largest  # the step the next grows from: the last, unless the interval's end cut it short
+        self._wanted = largest  # the step the plan wanted, before the interval's end
         self.last_rates: list[float | None] = [None] * len(self.watches)
         self.landings = 0  # rollbacks to land on an onset
         self.landed: list[float] = []  # the ends of the steps planned onto an onset
         self.failure = ""  # why the control stopped a run
         self._landing = False
+
+    def too_small(self, t: float) -> str:
+        return f"the contact steps fell below {self.largest * SMALLEST:.3g} s after t = {t:.17g}"
 
     def _state(self) -> list[tuple[float, float, float]]:
         return [w.values(self.exchange, r, self.last_step) for w, r in zip(self.watches, self.last_rates)]
@@ -98,12 +104,12 @@ class ContactSteps:
         if touching:
             # the overlap's own frequency, from the overlaps deeper than one step's approach: at a shallower one
             # the accelerations the bodies have from elsewhere (a neighbour's push) would read as a stiff contact
-            deep = [(g, a) for g, r, a in touching if -g > abs(r) * self.last_step]
+            deep = [(g, a) for g, r, a in touching if -g > abs(r) * self.size]
             omega = max((math.sqrt(abs(a) / -g) for g, a in deep), default=0.0)
-            step = min(math.pi / omega / self.per_contact if omega > 0 else math.inf, GROWTH * self.last_step)
+            step = min(math.pi / omega / self.per_contact if omega > 0 else math.inf, GROWTH * self.size)
             self.contact_step = step
         else:
-            step = min(self.largest, GROWTH * self.last_step)
+            step = min(self.largest, GROWTH * self.size)
         # the gaps that will cross zero: an onset ahead, or the end of a contact; halve the way, then land on it
         crossing = [g / -r for g, r, _ in state if (g >= 0.0 and r < 0.0) or (g < 0.0 and r > 0.0)]
         if crossing:
@@ -114,6 +120,7 @@ class ContactSteps:
                 step, self._landing = onset, True
             elif onset < 2 * step:
                 step = onset / 2
+        self._wanted = step
         return min(step, room), bool(touching)
 
     def advance(self, t: float, t_end: float) -> Outcome:
@@ -121,9 +128,10 @@ class ContactSteps:
             state = self._state()
             self._landing = False
             step, touching = self._planned(state, t_end - t)
-            last = step >= (t_end - t) * (1 - 1e-12)
+            # the interval's last step also where the time's rounding would leave a sliver of it
+            last = (t_end - t) - step <= max(1e-12 * (t_end - t), 8 * math.ulp(t_end))
             if not last and step < self.largest * SMALLEST:
-                self.failure = f"the contact steps fell below {self.largest * SMALLEST:.3g} s after t = {t:.17g}"
+                self.failure = self.too_small(t)
                 return Outcome(ERROR)
             if last:
                 step = t_end - t
@@ -138,6 +146,8 @@ class ContactSteps:
             self.tally.macro_steps += 1
             self.last_rates = [s[1] for s in state]
             self.last_step = step
+            # a step cut short by the interval's end (to one rounding, at worst) says nothing of the next
+            self.size = max(step, self._wanted) if last else step
             t = t_end if last else t + step
             if self._landing:
                 self.landed.append(t)
@@ -152,12 +162,13 @@ class ContactSteps:
                 if outcome.status == DISCARD:
                     return None, outcome
                 missed = self._overshoot(state, step)
-                if missed is None or landing == MAX_LANDINGS:
+                shortest = self.contact_step * LANDED  # an onset nearer than this is reached: no shorter retry
+                if missed is None or landing == MAX_LANDINGS or step <= shortest:
                     break
                 start.restore()
                 self.tally.retries += 1
                 self.landings += 1
-                step = missed / 2  # half way to the onset: the approach then lands on it as always
+                step = max(missed / 2, shortest)  # half way to the onset: the approach then lands on it as always
                 last, self._landing = False, False
         return step, last
 

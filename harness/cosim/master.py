@@ -5,8 +5,8 @@ components may be FMI 2.0 and FMI 3.0 FMUs in any mix.
 The master is assembled from parts over one unit interface (`harness.cosim.unit`): an algorithm
 (`harness.cosim.algorithms`), the controls over it (`harness.cosim.controls`: iteration, retry on
 discard, step doubling; `harness.cosim.energy`: the energy step control; `harness.cosim.contacts`: steps
-that land on contacts) and, for plain fixed-step runs, the same loop in C
-(`harness.cosim.native_core`), which the tests keep bit-identical to the Python parts.
+that land on contacts) and, for plain fixed-step runs and contact steps over plain macro steps, the same
+loop in C (`harness.cosim.native_core`), which the tests keep bit-identical to the Python parts.
 
 FMI 3.0 has no input derivatives, so an FMI 3.0 component cannot receive a linearly extrapolated
 input: by default the inputs are extrapolated linearly when every receiving component is FMI 2.0
@@ -111,7 +111,7 @@ class CoSimulationResult(TimeTable):
 
 class Master:
     """Runs a System; build once, call run() once. It sets the parts up from the options (an
-    algorithm, the controls over it, the C loop for plain fixed-step runs) and records the rows."""
+    algorithm, the controls over it, the C loop for plain fixed-step runs and contact steps) and records the rows."""
 
     def __init__(self, system: System, options: MasterOptions, fmus: SharedFmus | None = None):
         """`fmus`: extractions and loaded libraries to share with other runs (kept open); by default the
@@ -133,7 +133,7 @@ class Master:
             self.free()
             raise
         self.tally = Tally()
-        self.use_native = True  # the C loop for plain fixed-step runs, when it is built
+        self.use_native = True  # the C loop for plain fixed-step runs and contact steps, when it is built
         try:
             self.interval = self._parts()
         except BaseException:
@@ -242,12 +242,15 @@ class Master:
         native = self._native_loop()
         if native is not None:
             rows, status, culprit_index = native.run(grid, table, energy, on_row, progress)
-            tally.macro_steps = rows - 1
-            if status >= ERROR:
+            if native.contacts is None:
+                tally.macro_steps = rows - 1
+            if status >= ERROR and culprit_index < 0:  # the contact steps stopped the run
+                stopped_at, message = grid[rows - 1], self.interval.failure
+            elif status >= ERROR:
                 culprit = self.units[culprit_index]
                 raise HarnessError(f"{culprit.name}: an {culprit.instance.prefix} call returned {STATUS_NAMES[status]} near "
                                    f"t = {grid[rows - 1]:g}: {culprit.instance.last_message()}")
-            if status != OK:
+            elif status != OK:
                 culprit = self.units[culprit_index]
                 stopped_at = culprit.instance.last_successful_time() if status == DISCARD else grid[rows - 1]
                 message = f"{culprit.name} could not complete the step from t = {grid[rows - 1]:g}: " \
@@ -287,15 +290,17 @@ class Master:
                                   self.options.extrapolation, bond_energy)
 
     def _native_loop(self) -> NativeLoop | None:
-        """The C loop, for plain fixed-step runs when it is built."""
+        """The C loop, for plain fixed-step runs and contact steps over plain macro steps, when it is built."""
         o = self.options
         if o.iterate_tol is not None or o.tolerance is not None or o.on_discard != "stop" or self.bonds is not None \
-                or o.contact_steps or not self.use_native:
+                or not self.use_native:
             return None
         core = load_core()
         if core is None:
             return None
-        return NativeLoop(core, self.units, o.algorithm == "gauss-seidel", self.exchange.linear)
+        contacts = self.interval if o.contact_steps else None
+        loop = NativeLoop(core, self.units, o.algorithm == "gauss-seidel", self.exchange.linear, contacts, self.tally)
+        return loop if contacts is None or loop.saves_states else None
 
     def free(self) -> None:
         for unit in self.units:

@@ -21,24 +21,84 @@ class CoreUnit(ctypes.Structure):
                 ("energy_index", ctypes.c_int)]
 
 
+class ContactControl(ctypes.Structure):
+    """cosim_core.c's ContactControl: the settings and state of harness.cosim.contacts.ContactSteps."""
+    _fields_ = [("n_watches", ctypes.c_int), ("watch_unit", _int_p), ("watch_gap", _int_p), ("watch_rate", _int_p),
+                ("per_contact", ctypes.c_int), ("max_landings", ctypes.c_int), ("largest", ctypes.c_double),
+                ("growth", ctypes.c_double), ("landed_share", ctypes.c_double), ("smallest_share", ctypes.c_double),
+                ("contact_step", ctypes.c_double), ("last_step", ctypes.c_double), ("size", ctypes.c_double),
+                ("last_rates", _double_p),
+                ("have_rates", ctypes.c_int), ("macro_steps", ctypes.c_long), ("retries", ctypes.c_long),
+                ("landings", ctypes.c_long), ("landed", _double_p), ("landed_capacity", ctypes.c_long),
+                ("n_landed", ctypes.c_long), ("failed", ctypes.c_int), ("failed_at", ctypes.c_double),
+                ("scratch", _double_p), ("states", ctypes.POINTER(ctypes.c_void_p)), ("saved", _double_p)]
+
+
+class NativeContacts:
+    """A ContactSteps control handed to the C loop: its settings and state in a ContactControl, and back."""
+
+    LANDED_CAPACITY = 4096  # landed onsets the C loop keeps before it hands them over
+
+    def __init__(self, control, units: list):
+        from harness.cosim import contacts
+        self.control = control
+        index = {id(unit): k for k, unit in enumerate(units)}
+        watches = control.watches
+        self._arrays = [np.array([index[id(w.unit)] for w in watches], dtype=np.intc),
+                        np.array([w.gap for w in watches], dtype=np.intc),
+                        np.array([w.rate for w in watches], dtype=np.intc),
+                        np.zeros(len(watches)), np.zeros(self.LANDED_CAPACITY), np.zeros(3 * len(watches)),
+                        np.zeros(2 * sum(u.n_out for u in units))]
+        self._states = (ctypes.c_void_p * len(units))()
+        c = self.struct = ContactControl()
+        unit_of, gap, rate, rates, landed, scratch, saved = self._arrays
+        c.n_watches = len(watches)
+        c.watch_unit, c.watch_gap, c.watch_rate = (a.ctypes.data_as(_int_p) for a in (unit_of, gap, rate))
+        c.per_contact, c.max_landings = control.per_contact, contacts.MAX_LANDINGS
+        c.largest, c.growth = control.largest, contacts.GROWTH
+        c.landed_share, c.smallest_share = contacts.LANDED, contacts.SMALLEST
+        c.last_rates, c.landed, c.scratch, c.saved = (a.ctypes.data_as(_double_p) for a in (rates, landed, scratch,
+                                                                                           saved))
+        c.landed_capacity = self.LANDED_CAPACITY
+        c.states = self._states
+        c.contact_step, c.last_step, c.size = control.contact_step, control.last_step, control.size
+        c.have_rates = int(all(r is not None for r in control.last_rates))
+        if c.have_rates:
+            rates[:] = control.last_rates
+
+    def hand_back(self, tally) -> None:
+        """What the C loop did since the last call, into the control and the tally."""
+        c, control = self.struct, self.control
+        control.contact_step, control.last_step, control.size = c.contact_step, c.last_step, c.size
+        control.last_rates = [float(r) for r in self._arrays[3]] if c.have_rates else control.last_rates
+        control.landed.extend(float(t) for t in self._arrays[4][:c.n_landed])
+        control.landings += c.landings
+        tally.macro_steps += c.macro_steps
+        tally.retries += c.retries
+        c.n_landed = c.landings = c.macro_steps = c.retries = 0
+        if c.failed:
+            control.failure = control.too_small(c.failed_at)
+
+
 def load_core() -> ctypes.CDLL | None:
     """The compiled core, or None when it has not been built (the master then loops in Python)."""
     library = load_library("cosim_core")
     if library is not None:
         library.cosim_run.argtypes = [ctypes.POINTER(CoreUnit), ctypes.c_int, _double_p, ctypes.c_long, ctypes.c_int,
                                       ctypes.c_int, _double_p, ctypes.c_long, _double_p, _int_p,
-                                      ctypes.POINTER(ctypes.c_long), _int_p]
+                                      ctypes.POINTER(ContactControl), ctypes.POINTER(ctypes.c_long), _int_p]
         library.cosim_run.restype = ctypes.c_int
     return library
 
 
 class NativeLoop:
-    """The C loop over the units' own buffers and C functions, for plain fixed-step runs (no rollback).
-    It runs in chunks, so that progress is shown and rows reach the caller as they come."""
+    """The C loop over the units' own buffers and C functions, for plain fixed-step runs and for contact
+    steps (`contacts`, a ContactSteps over the plain algorithm). It runs in chunks, so that progress is
+    shown and rows reach the caller as they come."""
 
     CHUNK = 20000  # rows per call
 
-    def __init__(self, core: ctypes.CDLL, units: list, gauss_seidel: bool, linear: bool):
+    def __init__(self, core: ctypes.CDLL, units: list, gauss_seidel: bool, linear: bool, contacts=None, tally=None):
         from harness.fmi.native_calls import fill_calls
         self.core = core
         index = {unit.name: k for k, unit in enumerate(units)}
@@ -67,6 +127,14 @@ class NativeLoop:
         self.n_units = len(units)
         self.stepped = (ctypes.c_int * len(units))()
         self.gauss_seidel, self.linear = int(gauss_seidel), int(linear)
+        self.contacts = NativeContacts(contacts, units) if contacts is not None else None
+        self.tally = tally
+
+    @property
+    def saves_states(self) -> bool:
+        """Every unit's binary exports the FMU state functions."""
+        return all(struct.calls.get_state and struct.calls.set_state and struct.calls.free_state
+                   for struct in self.structs)
 
     def run(self, grid: np.ndarray, table: np.ndarray, energy: np.ndarray, on_row=None,
             progress=None) -> tuple[int, int, int]:
@@ -80,13 +148,16 @@ class NativeLoop:
             status = self.core.cosim_run(self.structs, self.n_units, part.ctypes.data_as(_double_p), len(part),
                                          self.gauss_seidel, self.linear, table[first:].ctypes.data_as(_double_p),
                                          table.shape[1], energy[first:].ctypes.data_as(_double_p), self.stepped,
+                                         ctypes.byref(self.contacts.struct) if self.contacts else None,
                                          ctypes.byref(rows_done), ctypes.byref(culprit))
+            if self.contacts:
+                self.contacts.hand_back(self.tally)
             rows = first + rows_done.value
             if on_row is not None:
                 for row in table[first + (1 if first else 0):rows]:
                     on_row(row)
-            if status != 0 or end == len(grid) - 1:
+            if status != 0 or rows == len(grid):
                 return rows, status, culprit.value
-            first = end
+            first = rows - 1  # the chunk's end, or where the contacts' landed onsets were handed over
             if progress is not None:
                 progress(grid[first], first / (len(grid) - 1))

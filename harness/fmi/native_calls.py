@@ -21,7 +21,8 @@ class FmiCalls(ctypes.Structure):
     _fields_ = [("component", ctypes.c_void_p), ("set_float", ctypes.c_void_p), ("get_float", ctypes.c_void_p),
                 ("get_integer", ctypes.c_void_p), ("do_step", ctypes.c_void_p), ("set_derivatives", ctypes.c_void_p),
                 ("get_derivatives", ctypes.c_void_p), ("fmi3", ctypes.c_int), ("integer_kind", ctypes.c_int),
-                ("last_time", ctypes.POINTER(ctypes.c_double))]
+                ("last_time", ctypes.POINTER(ctypes.c_double)), ("get_state", ctypes.c_void_p),
+                ("set_state", ctypes.c_void_p), ("free_state", ctypes.c_void_p)]
 
 
 def fill_calls(calls: FmiCalls, raw: Calls, integer_reader=None) -> None:
@@ -34,6 +35,9 @@ def fill_calls(calls: FmiCalls, raw: Calls, integer_reader=None) -> None:
         calls.set_derivatives = raw.function(raw.names["input_derivatives"])
     calls.get_derivatives = raw.function(raw.names["output_derivatives"])
     calls.last_time = ctypes.pointer(raw.last_time)
+    names = [raw.names[role] for role in ("get_state", "set_state", "free_state")]
+    if all(hasattr(raw.dll, name) for name in names):  # an FMU that cannot save its state need not export them
+        calls.get_state, calls.set_state, calls.free_state = (raw.function(name) for name in names)
     if integer_reader is not None:
         calls.get_integer = integer_reader.address
         calls.integer_kind = INTEGER_KINDS[integer_reader.dtype]

@@ -4,6 +4,7 @@
  * loaded, of FMI 2.0 or 3.0 per unit) and keeps everything else: initialization, iteration, step
  * doubling, rollback, messages. Semantics are those of harness/cosim/master.py, which the tests
  * compare against. */
+#include <math.h>
 #include <stdint.h>
 
 #include "fmi_calls.h"
@@ -28,6 +29,8 @@ static double integer_value(const CoreUnit *unit, int i)
     default: return ((const int *)unit->ints)[i];
     }
 }
+
+static const double PI = 3.14159265358979323846; /* math.pi, as the Python loop divides by it */
 
 enum { CORE_OK = FMI_OK, CORE_DISCARD = FMI_DISCARD, CORE_ERROR = FMI_ERROR };
 
@@ -83,14 +86,238 @@ static int record(CoreUnit *units, int n_units, double t, double *row, double *e
     return CORE_OK;
 }
 
-/* Records grid[0], then steps to grid[1], records, ... up to grid[n_points - 1]. Returns the status;
- * *rows is the number of rows written, *culprit the unit that failed (or -1). `stepped` is scratch
- * space of n_units ints. */
+/* One macro step [t, t + H] of every unit (Jacobi or Gauss-Seidel); the outputs read become those at
+ * the start of the next step. */
+static int macro_step(CoreUnit *units, int n_units, double t, double H, int gauss_seidel, int linear, int *stepped,
+                      int *culprit)
+{
+    int k, i, status;
+    for (k = 0; k < n_units; k++) stepped[k] = 0;
+    if (!gauss_seidel) {
+        for (k = 0; k < n_units; k++)
+            if ((status = feed(units, k, H, linear, stepped)) >= CORE_ERROR) {
+                *culprit = k;
+                return status;
+            }
+    }
+    for (k = 0; k < n_units; k++) {
+        if (gauss_seidel && (status = feed(units, k, H, linear, stepped)) >= CORE_ERROR) {
+            *culprit = k;
+            return status;
+        }
+        status = step_and_read(&units[k], t, H, linear);
+        if (status == CORE_DISCARD || status >= CORE_ERROR) {
+            *culprit = k;
+            return status;
+        }
+        if (gauss_seidel) stepped[k] = 1;
+    }
+    for (k = 0; k < n_units; k++) {
+        for (i = 0; i < units[k].n_out; i++) units[k].y_now[i] = units[k].y_next[i];
+        if (linear)
+            for (i = 0; i < units[k].n_out; i++) units[k].dy_now[i] = units[k].dy_next[i];
+    }
+    return CORE_OK;
+}
+
+/* The contact steps of harness/cosim/contacts.py (ContactSteps), the same arithmetic in the same order:
+ * the tests hold both loops to the same numbers, bit for bit. Python fills the settings and reads back
+ * the tallies and the state. */
+typedef struct {
+    int n_watches;
+    const int *watch_unit, *watch_gap, *watch_rate;  /* per watch: the unit and its outputs gap, gap_rate */
+    int per_contact, max_landings;
+    double largest, growth, landed_share, smallest_share;
+    double contact_step, last_step, size;  /* carried from one call to the next */
+    double *last_rates;              /* per watch; valid once have_rates */
+    int have_rates;
+    long macro_steps, retries, landings;
+    double *landed;                  /* the ends of the steps planned onto an onset */
+    long landed_capacity, n_landed;
+    int failed;                      /* the steps fell below the smallest at failed_at */
+    double failed_at;
+    double *scratch;                 /* 3 n_watches: gap, rate and its slope per watch */
+    void **states;                   /* n_units */
+    double *saved;                   /* 2 x every unit's n_out: y_now and dy_now at the saved state */
+} ContactControl;
+
+static void contact_values(const ContactControl *c, const CoreUnit *units, int linear)
+{
+    int w;
+    for (w = 0; w < c->n_watches; w++) {
+        const CoreUnit *unit = &units[c->watch_unit[w]];
+        const double rate = unit->y_now[c->watch_rate[w]];
+        double slope;
+        if (linear) slope = unit->dy_now[c->watch_rate[w]];
+        else slope = c->have_rates && c->last_step > 0 ? (rate - c->last_rates[w]) / c->last_step : 0.0;
+        c->scratch[3 * w] = unit->y_now[c->watch_gap[w]];
+        c->scratch[3 * w + 1] = rate;
+        c->scratch[3 * w + 2] = slope;
+    }
+}
+
+/* The next step (at most room; *wanted: before the room cut it); *touching: a contact acts at its start;
+ * *landing: it ends on an onset */
+static double contact_plan(ContactControl *c, double room, int *touching, int *landing, double *wanted)
+{
+    int w, crossing = 0;
+    double step, omega = 0.0, onset = INFINITY;
+    *touching = 0;
+    *landing = 0;
+    for (w = 0; w < c->n_watches; w++) {
+        const double g = c->scratch[3 * w], r = c->scratch[3 * w + 1], a = c->scratch[3 * w + 2];
+        if (g < 0.0) {
+            *touching = 1;
+            if (-g > fabs(r) * c->size) omega = fmax(omega, sqrt(fabs(a) / -g));
+        }
+        if ((g >= 0.0 && r < 0.0) || (g < 0.0 && r > 0.0)) {
+            const double estimate = g / -r;
+            if (!crossing || estimate < onset) onset = estimate;
+            crossing = 1;
+        }
+    }
+    if (*touching) {
+        step = fmin(omega > 0 ? PI / omega / c->per_contact : INFINITY, c->growth * c->size);
+        c->contact_step = step;
+    } else {
+        step = fmin(c->largest, c->growth * c->size);
+    }
+    if (crossing) {
+        if (onset <= c->contact_step * c->landed_share) step = fmin(step, c->contact_step);
+        else if (onset <= fmin(step, c->contact_step)) {
+            step = onset;
+            *landing = 1;
+        } else if (onset < 2 * step) step = onset / 2;
+    }
+    *wanted = step;
+    return fmin(step, room);
+}
+
+/* After a step that began apart: 0 where no gap fell below the landing depth, else 1 and *shortest the
+ * step to the earliest secant estimate of an onset */
+static int contact_overshoot(const ContactControl *c, const CoreUnit *units, double step, double *shortest)
+{
+    int w, found = 0;
+    for (w = 0; w < c->n_watches; w++) {
+        const double g0 = c->scratch[3 * w], r0 = c->scratch[3 * w + 1];
+        const double g1 = units[c->watch_unit[w]].y_now[c->watch_gap[w]];
+        const double depth = 0.5 * fabs(r0) * c->contact_step;
+        if (g1 < -depth && g0 > 0.0) {
+            const double guess = step * g0 / (g0 - g1);
+            if (!found || guess < *shortest) *shortest = guess;
+            found = 1;
+        }
+    }
+    return found;
+}
+
+static void release_states(ContactControl *c, CoreUnit *units, int n_saved)
+{
+    int k;
+    for (k = 0; k < n_saved; k++)
+        if (c->states[k]) fmi_free_state(&units[k].calls, &c->states[k]);
+}
+
+/* Saves every unit's FMU state and outputs; on failure releases what it saved */
+static int save_all(ContactControl *c, CoreUnit *units, int n_units, int *culprit)
+{
+    int k, i, offset = 0;
+    for (k = 0; k < n_units; k++) {
+        c->states[k] = NULL;
+        if (fmi_get_state(&units[k].calls, &c->states[k]) >= CORE_ERROR) {
+            release_states(c, units, k);
+            *culprit = k;
+            return CORE_ERROR;
+        }
+        for (i = 0; i < units[k].n_out; i++, offset += 2) {
+            c->saved[offset] = units[k].y_now[i];
+            c->saved[offset + 1] = units[k].dy_now[i];
+        }
+    }
+    return CORE_OK;
+}
+
+static int restore_all(ContactControl *c, CoreUnit *units, int n_units, int *culprit)
+{
+    int k, i, offset = 0;
+    for (k = 0; k < n_units; k++) {
+        if (fmi_set_state(&units[k].calls, c->states[k]) >= CORE_ERROR) {
+            *culprit = k;
+            return CORE_ERROR;
+        }
+        for (i = 0; i < units[k].n_out; i++, offset += 2) {
+            units[k].y_now[i] = c->saved[offset];
+            units[k].dy_now[i] = c->saved[offset + 1];
+        }
+    }
+    return CORE_OK;
+}
+
+/* A step that began apart, rolled back and redone half way to the onset where it overshot one */
+static int landed_step(ContactControl *c, CoreUnit *units, int n_units, double t, double *step, int *last,
+                       int *landing, int gauss_seidel, int linear, int *stepped, int *culprit)
+{
+    int attempt, status = save_all(c, units, n_units, culprit);
+    if (status != CORE_OK) return status;
+    for (attempt = 0; attempt <= c->max_landings; attempt++) {
+        double missed = 0.0;
+        const double shortest = c->contact_step * c->landed_share;
+        status = macro_step(units, n_units, t, *step, gauss_seidel, linear, stepped, culprit);
+        if (status != CORE_OK) break;
+        if (!contact_overshoot(c, units, *step, &missed) || attempt == c->max_landings || *step <= shortest) break;
+        if ((status = restore_all(c, units, n_units, culprit)) != CORE_OK) break;
+        c->retries++;
+        c->landings++;
+        *step = fmax(missed / 2, shortest);
+        *last = 0;
+        *landing = 0;
+    }
+    release_states(c, units, n_units);
+    return status;
+}
+
+/* Covers [t, t_end] with contact steps */
+static int contact_advance(ContactControl *c, CoreUnit *units, int n_units, double t, double t_end, int gauss_seidel,
+                           int linear, int *stepped, int *culprit)
+{
+    int w, status;
+    while (t < t_end) {
+        int touching, landing, last;
+        double step, wanted;
+        contact_values(c, units, linear);
+        step = contact_plan(c, t_end - t, &touching, &landing, &wanted);
+        last = (t_end - t) - step <= fmax(1e-12 * (t_end - t), 8 * (nextafter(fabs(t_end), INFINITY) - fabs(t_end)));
+        if (!last && step < c->largest * c->smallest_share) {
+            c->failed = 1;
+            c->failed_at = t;
+            return CORE_ERROR;
+        }
+        if (last) step = t_end - t;
+        status = touching ? macro_step(units, n_units, t, step, gauss_seidel, linear, stepped, culprit)
+                          : landed_step(c, units, n_units, t, &step, &last, &landing, gauss_seidel, linear, stepped,
+                                        culprit);
+        if (status != CORE_OK) return status;
+        c->macro_steps++;
+        for (w = 0; w < c->n_watches; w++) c->last_rates[w] = c->scratch[3 * w + 1];
+        c->have_rates = 1;
+        c->last_step = step;
+        c->size = last ? fmax(step, wanted) : step;
+        t = last ? t_end : t + step;
+        if (landing && c->n_landed < c->landed_capacity) c->landed[c->n_landed++] = t;
+    }
+    return CORE_OK;
+}
+
+/* Records grid[0], then steps to grid[1] (one macro step, or contact steps where `contacts` is given),
+ * records, ... up to grid[n_points - 1]. Returns the status; *rows is the number of rows written,
+ * *culprit the unit that failed (or -1). `stepped` is scratch space of n_units ints. With contacts, a
+ * run also returns early (OK, fewer rows) once half the landed buffer is used, for the caller to read it. */
 int cosim_run(CoreUnit *units, int n_units, const double *grid, long n_points, int gauss_seidel, int linear,
-              double *table, long row_length, double *energy, int *stepped, long *rows, int *culprit)
+              double *table, long row_length, double *energy, int *stepped, ContactControl *contacts, long *rows,
+              int *culprit)
 {
     long p;
-    int k, i, status;
+    int status;
     *rows = 0;
     *culprit = -1;
     for (p = 0; p < n_points; p++) {
@@ -98,34 +325,13 @@ int cosim_run(CoreUnit *units, int n_units, const double *grid, long n_points, i
         if (record(units, n_units, t, table + p * row_length, energy + p, culprit) != CORE_OK) return CORE_ERROR;
         *rows = p + 1;
         if (p + 1 == n_points) break;
-        {
-            const double H = grid[p + 1] - t;
-            for (k = 0; k < n_units; k++) stepped[k] = 0;
-            if (!gauss_seidel) {
-                for (k = 0; k < n_units; k++)
-                    if ((status = feed(units, k, H, linear, stepped)) >= CORE_ERROR) {
-                        *culprit = k;
-                        return status;
-                    }
-            }
-            for (k = 0; k < n_units; k++) {
-                if (gauss_seidel && (status = feed(units, k, H, linear, stepped)) >= CORE_ERROR) {
-                    *culprit = k;
-                    return status;
-                }
-                status = step_and_read(&units[k], t, H, linear);
-                if (status == CORE_DISCARD || status >= CORE_ERROR) {
-                    *culprit = k;
-                    return status;
-                }
-                if (gauss_seidel) stepped[k] = 1;
-            }
-            for (k = 0; k < n_units; k++) {
-                for (i = 0; i < units[k].n_out; i++) units[k].y_now[i] = units[k].y_next[i];
-                if (linear)
-                    for (i = 0; i < units[k].n_out; i++) units[k].dy_now[i] = units[k].dy_next[i];
-            }
+        if (contacts) {
+            if (2 * contacts->n_landed >= contacts->landed_capacity) break;
+            status = contact_advance(contacts, units, n_units, t, grid[p + 1], gauss_seidel, linear, stepped, culprit);
+        } else {
+            status = macro_step(units, n_units, t, grid[p + 1] - t, gauss_seidel, linear, stepped, culprit);
         }
+        if (status != CORE_OK) return status;
     }
     return CORE_OK;
 }

@@ -20,6 +20,10 @@ typedef int (*GetFloat3)(void *, const unsigned *, size_t, double *, size_t);
 typedef int (*GetInteger3)(void *, const unsigned *, size_t, void *, size_t);
 typedef int (*DoStep3)(void *, double, double, bool, bool *, bool *, bool *, double *);
 typedef int (*GetDerivatives3)(void *, const unsigned *, size_t, const int *, double *, size_t);
+/* FMU states: the same shape in both versions */
+typedef int (*GetState)(void *, void **);
+typedef int (*SetState)(void *, void *);
+typedef int (*FreeState)(void *, void **);
 
 enum { FMI_OK = 0, FMI_WARNING = 1, FMI_DISCARD = 2, FMI_ERROR = 3 };
 /* The C type of the integers read: int32, int64 or uint64 */
@@ -31,6 +35,7 @@ typedef struct {
     int fmi3;           /* the function pointers are FMI 3.0's */
     int integer_kind;   /* INTEGER_32, INTEGER_64 or UNSIGNED_64 */
     double *last_time;  /* FMI 3.0: where fmi3DoStep's lastSuccessfulTime goes */
+    void *get_state, *set_state, *free_state;  /* NULL where the FMU cannot save its state */
 } FmiCalls;
 
 static inline int fmi_set_floats(const FmiCalls *f, const unsigned *vrs, int n, const double *values)
@@ -72,6 +77,21 @@ static inline int fmi_do_step(const FmiCalls *f, double t, double H)
         return ((DoStep3)f->do_step)(f->component, t, H, true, &event, &terminate, &early, f->last_time);
     }
     return ((DoStep2)f->do_step)(f->component, t, H, 1);
+}
+
+static inline int fmi_get_state(const FmiCalls *f, void **state)
+{
+    return ((GetState)f->get_state)(f->component, state);
+}
+
+static inline int fmi_set_state(const FmiCalls *f, void *state)
+{
+    return ((SetState)f->set_state)(f->component, state);
+}
+
+static inline int fmi_free_state(const FmiCalls *f, void **state)
+{
+    return ((FreeState)f->free_state)(f->component, state);
 }
 
 #endif
