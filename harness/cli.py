@@ -436,13 +436,16 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--energy-tolerance", type=positive_number, metavar="J",
                    help="choose the macro steps by a PI controller on the energy the scene's power bonds create, "
                         "each step's sum of the bonds' |energy| within its share of J over the run (the drift "
-                        "then stays below J); --step is then the output interval and the largest macro step")
+                        "then stays below J); on a scene with Contact elements it also lands on each contact's "
+                        "onset (as --contact-steps does); --step is then the output interval and the largest "
+                        "macro step")
     p.add_argument("--energy-correction", action="store_true",
                    help="hand the energy the power bonds created back through the next steps' forces")
     p.add_argument("--contact-steps", type=count(100_000), metavar="N",
                    help="land macro steps on the onsets of the Contact elements' contacts (rollback through FMU "
-                        "states where the prediction fails) and resolve each contact in about N macro steps; "
-                        "--step is then the output interval and the largest macro step")
+                        "states where the prediction fails) and resolve each contact in about N macro steps (with "
+                        "--energy-tolerance: no step longer than the energy controller's either); --step is then "
+                        "the output interval and the largest macro step")
     p.add_argument("--out", default="run.csv", help="CSV file: time and <component>.<output> columns")
     p.add_argument("--reference", metavar="FILE.csv",
                    help="also write the scene's derived monolithic solution (objects joined by Springs and Contacts) "

@@ -103,7 +103,8 @@ def assert_agrees(checked: dict, expected: dict[str, float], bound: float) -> fl
 
 @pytest.mark.parametrize("scene, stop, bound", [("thesis_scene", 2.0, 1e-10), ("double_and_cart", 3.0, 1e-10),
                                                 ("spring_chain", 2.0, 1e-10), ("string_pendulum", 2.0, 1e-10),
-                                                ("newtons_cradle", 2.0, 1e-9)])
+                                                ("newtons_cradle", 2.0, 1e-9), ("contact_cradle", 0.3, 1e-8),
+                                                ("colliding_carts", 0.8, 1e-8), ("double_strikes_ball", 0.62, 1e-8)])
 def test_the_headless_check_ends_where_the_native_master_does(scene, stop, bound):
     needs_browser()
     checked = drive("check", f"{page(scene).as_uri()}?check={stop}")

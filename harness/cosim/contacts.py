@@ -22,6 +22,9 @@ steps over it or costs a million steps. The control watches every component with
   that approach stands in for |gap| (so the accelerations the bodies had apart do not read as a stiff
   contact).
 * After the last contact ends, the step grows twofold per step back to the communication interval.
+* With the energy step control (`energy`, over steps that measure their bonds), no step is longer than the
+  energy controller's: in contact that sizes the steps by the energy each exchange creates, beside (or,
+  without steps per contact, instead of) the contact's duration.
 """
 from __future__ import annotations
 
@@ -31,6 +34,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from harness.cosim.algorithms import DONE, Exchange, Outcome
+from harness.cosim.energy import EnergyController
 from harness.cosim.unit import Snapshot, Unit
 from harness.errors import HarnessError
 from harness.fmi.fmu_instance import DISCARD, ERROR
@@ -70,8 +74,9 @@ class ContactSteps:
     """Macro steps inside [t, t_end] that land on each contact's onset and resolve the contact (see the
     module's text). Counts its steps and rollbacks in the tally."""
 
-    def __init__(self, stepper, exchange: Exchange, largest: float, steps_per_contact: int, tally):
-        self.stepper, self.exchange, self.tally = stepper, exchange, tally
+    def __init__(self, stepper, exchange: Exchange, largest: float, steps_per_contact: int | None, tally,
+                 energy: EnergyController | None = None):
+        self.stepper, self.exchange, self.tally, self.energy = stepper, exchange, tally, energy
         self.units = exchange.units
         self.watches = contact_watches(self.units)
         if not self.watches:
@@ -106,10 +111,15 @@ class ContactSteps:
             # the accelerations the bodies have from elsewhere (a neighbour's push) would read as a stiff contact
             deep = [(g, a) for g, r, a in touching if -g > abs(r) * self.size]
             omega = max((math.sqrt(abs(a) / -g) for g, a in deep), default=0.0)
-            step = min(math.pi / omega / self.per_contact if omega > 0 else math.inf, GROWTH * self.size)
+            step = min(math.pi / omega / self.per_contact if omega > 0 and self.per_contact else math.inf,
+                       GROWTH * self.size)
+            if self.energy is not None:
+                step = min(step, self.energy.h)
             self.contact_step = step
         else:
             step = min(self.largest, GROWTH * self.size)
+            if self.energy is not None:
+                step = min(step, self.energy.h)
         # the gaps that will cross zero: an onset ahead, or the end of a contact; halve the way, then land on it
         crossing = [g / -r for g, r, _ in state if (g >= 0.0 and r < 0.0) or (g < 0.0 and r > 0.0)]
         if crossing:
@@ -146,6 +156,8 @@ class ContactSteps:
             self.tally.macro_steps += 1
             self.last_rates = [s[1] for s in state]
             self.last_step = step
+            if self.energy is not None:
+                self.energy.update(step, self.stepper.bonds.last_magnitude, last)
             # a step cut short by the interval's end (to one rounding, at worst) says nothing of the next
             self.size = max(step, self._wanted) if last else step
             t = t_end if last else t + step

@@ -245,35 +245,45 @@ class BondedStep:
                        * float(units[p.receiver].y_now[p.velocity_out]) for p in self.bonds.ports)
 
 
-class EnergyStepControl:
-    """Macro steps inside [t, t_end] chosen by a PI controller on the energy the bonds create (see
-    the module's text); no step is rejected, so no state is saved."""
+class EnergyController:
+    """The PI controller on the energy the bonds create (see the module's text): the next macro step `h`
+    from the last step and the magnitude of what its bonds created. Serves EnergyStepControl and, on
+    scenes with contacts, the contact steps (harness.cosim.contacts)."""
 
     SAFETY, MIN_RATE, MAX_RATE = 0.9, 0.2, 2.0
 
-    def __init__(self, step: BondedStep, tolerance: float, duration: float, order: int, largest: float, tally):
-        self.bonded, self.tolerance, self.duration, self.tally = step, tolerance, duration, tally
+    def __init__(self, tolerance: float, duration: float, order: int, largest: float, smallest: float):
+        self.tolerance, self.duration = tolerance, duration
         self.k_integral, self.k_proportional = 0.3 / order, 0.4 / order
-        self.largest = largest  # the communication interval
-        self.smallest = largest / 2 ** 10
+        self.largest, self.smallest = largest, smallest
         self.h = largest / 4  # the first step: a quarter interval, then the controller's
         self.last_error = 1.0
 
+    def update(self, step: float, magnitude: float, cut_short: bool) -> None:
+        error = max(magnitude / (self.tolerance * step / self.duration), 1e-10)
+        rate = self.SAFETY * error ** -self.k_integral * (self.last_error / error) ** self.k_proportional
+        self.last_error = error
+        if not cut_short or step >= self.h:  # a step cut short by the interval's end says little about h
+            self.h = min(self.largest, max(self.smallest, step * min(self.MAX_RATE, max(self.MIN_RATE, rate))))
+
+
+class EnergyStepControl:
+    """Macro steps inside [t, t_end] chosen by the energy controller; no step is rejected, so no state is
+    saved."""
+
+    def __init__(self, step: BondedStep, controller: EnergyController, tally):
+        self.bonded, self.controller, self.tally = step, controller, tally
+
     def advance(self, t: float, t_end: float) -> Outcome:
         while t < t_end:
-            last = self.h >= (t_end - t) * (1 - 1e-12)
-            step = t_end - t if last else self.h
+            last = self.controller.h >= (t_end - t) * (1 - 1e-12)
+            step = t_end - t if last else self.controller.h
             outcome = self.bonded.step(t, step)
             if outcome.status == DISCARD:
                 return outcome
             self.tally.macro_steps += 1
             t = t_end if last else t + step
-            error = self.bonded.bonds.last_magnitude / (self.tolerance * step / self.duration)
-            error = max(error, 1e-10)
-            rate = self.SAFETY * error ** -self.k_integral * (self.last_error / error) ** self.k_proportional
-            self.last_error = error
-            if not last or step >= self.h:  # a step cut short by the interval's end says little about h
-                self.h = min(self.largest, max(self.smallest, step * min(self.MAX_RATE, max(self.MIN_RATE, rate))))
+            self.controller.update(step, self.bonded.bonds.last_magnitude, last)
         return DONE
 
 

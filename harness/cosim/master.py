@@ -28,8 +28,8 @@ from typing import Callable
 import numpy as np
 
 from harness.cosim.algorithms import ALGORITHMS, Exchange
-from harness.cosim.contacts import ContactSteps
-from harness.cosim.energy import BondedStep, EnergyStepControl, PowerBonds, order_of
+from harness.cosim.contacts import SMALLEST, ContactSteps, contact_watches
+from harness.cosim.energy import BondedStep, EnergyController, EnergyStepControl, PowerBonds, order_of
 from harness.cosim.controls import Iteration, RetryOnDiscard, StepDoubling, Stepper, Tally
 from harness.cosim.native_core import NativeLoop, load_core
 from harness.cosim.structure import System
@@ -80,9 +80,9 @@ class MasterOptions:
             if not (isinstance(self.contact_steps, int) and 1 <= self.contact_steps <= 100_000):
                 raise HarnessError(f"--contact-steps {self.contact_steps!r}: give a whole number of steps per contact "
                                    "from 1 to 100000")
-            if self.tolerance is not None or self.energy_tol is not None:
+            if self.tolerance is not None:
                 raise HarnessError("--contact-steps chooses the macro steps itself: it does not combine with "
-                                   "--tolerance or --energy-tolerance")
+                                   "--tolerance (step doubling)")
         for name in ("iterate_tol", "tolerance", "energy_tol"):
             value = getattr(self, name)
             if value is not None and not (value > 0 and math.isfinite(value)):
@@ -155,8 +155,12 @@ class Master:
             self.bonds = PowerBonds(self.system, self.exchange)
             stepper = BondedStep(stepper, self.bonds, o.energy_correction)
             if o.energy_tol:
-                return EnergyStepControl(stepper, o.energy_tol, o.stop - o.start, order_of(self.exchange),
-                                         o.step, self.tally)
+                duration, order = o.stop - o.start, order_of(self.exchange)
+                if o.contact_steps or contact_watches(self.units):  # land on the contacts, size them by energy
+                    energy = EnergyController(o.energy_tol, duration, order, o.step, o.step * SMALLEST)
+                    return ContactSteps(stepper, self.exchange, o.step, o.contact_steps, self.tally, energy)
+                return EnergyStepControl(stepper, EnergyController(o.energy_tol, duration, order, o.step,
+                                                                   o.step / 2 ** 10), self.tally)
         if o.contact_steps:
             return ContactSteps(stepper, self.exchange, o.step, o.contact_steps, self.tally)
         if o.tolerance:
