@@ -98,8 +98,8 @@ def test_run_writes_the_reference_under_the_runs_columns(fmu_paths, tmp_path, ca
     assert main(["run", str(scene), "--stop", "2", "--out", str(out), "--reference", str(reference),
                  "--quiet"]) == 0
     assert "derived monolithic reference" in capsys.readouterr().out
-    run_rows = list(csv.reader(out.open()))
-    reference_rows = list(csv.reader(reference.open()))
+    run_rows = list(csv.reader(out.read_text().splitlines()))
+    reference_rows = list(csv.reader(reference.read_text().splitlines()))
     header = reference_rows[0]
     # a subsequence of the run's columns: every state and float output, no counters
     assert [c for c in run_rows[0] if c in header] == header
