@@ -150,6 +150,7 @@ def command_view(args: argparse.Namespace) -> int:
 
 def command_run(args: argparse.Namespace) -> int:
     from harness.cosim.system import component_files, system_inputs
+    from harness.cosim.contacts import ContactSteps
     from harness.cosim.master import Master, MasterOptions
     from harness.cosim.system import load_system
     from harness.output import csv_header, output_file, written
@@ -182,8 +183,10 @@ def command_run(args: argparse.Namespace) -> int:
                     stream.write(",".join(f"{v:.17g}" for v in row) + "\n")
 
                 result = master.run(on_row=write_row)
+                landed = isinstance(master.interval, ContactSteps)
     steps = (f"{result.macro_steps} macro steps chosen by step doubling (rows every {step:g} s)" if args.tolerance
-             else f"{result.macro_steps} macro steps chosen by the bonds' energy (rows every {step:g} s)"
+             else f"{result.macro_steps} macro steps chosen by the bonds' energy"
+                  f"{' and landed on the contacts' if landed else ''} (rows every {step:g} s)"
              if args.energy_tolerance
              else f"{result.macro_steps} macro steps landed on the contacts (rows every {step:g} s)"
              if args.contact_steps else f"{result.macro_steps} macro steps of {step:g} s")

@@ -255,3 +255,11 @@ def test_the_energy_step_control_lands_on_contacts_and_sizes_them_by_energy(stri
     # with steps per contact too, each step is the shorter of the two
     both = run_system(system, MasterOptions(stop=STOP, step=STOP / 4, energy_tol=1e-4, contact_steps=50))
     assert both.macro_steps >= result.macro_steps and rate_error(both, reference) < 1e-4
+
+
+def test_the_run_command_says_the_energy_steps_landed_on_the_contacts(strike, tmp_path, capsys):
+    out = tmp_path / "run.csv"
+    assert main(["run", str(strike[0].origin), "--energy-tolerance", "1e-3", "--out", str(out), "--quiet"]) == 0
+    said = capsys.readouterr().out
+    assert "macro steps chosen by the bonds' energy and landed on the contacts" in said, said
+    assert len(out.read_text().splitlines()) == 1 + 5  # the header and the strike's five communication points
