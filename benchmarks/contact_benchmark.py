@@ -11,7 +11,9 @@ velocities relative to the fastest, the energy created is relative to the cradle
 and given per contact onset. Macro steps are machine-independent; seconds are this machine's. Then the
 macro steps each master needs for an error of 1e-4 (log-log interpolation between the bracketing runs) and
 the ratio of the best fixed-step master's to the impact-aware master's (goal: at least 20), and the energy
-the impact-aware master creates per contact onset (goal: below 1e-6 of the cradle's energy).
+the impact-aware master creates per contact onset (goal: below 1e-6 of the cradle's energy). Last, the
+impact-aware master at 100 steps per contact in the master's C loop and in its Python loop, alternately
+(the same macro steps, bit for bit): the time per macro step of each and their ratio.
 
 Usage: python benchmarks/contact_benchmark.py [--quick] [--repeats 3]
 """
@@ -25,6 +27,9 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 
+import time  # noqa: E402
+
+from harness.cosim.master import Master, MasterOptions  # noqa: E402
 from harness.cosim.system import load_system  # noqa: E402
 from harness.fmi.fmus import build_fmus  # noqa: E402
 from harness.studies.contact_study import TARGET, contact_sweep, steps_needed  # noqa: E402
@@ -41,6 +46,7 @@ def main(argv: list[str] | None = None) -> int:
     build_fmus()
     with load_system(ROOT / "scenes" / "contact_cradle.json") as system:
         points = contact_sweep(system, stop=STOP, repeats=args.repeats, quick=args.quick, workers=1)
+        loops = compare_loops(system, args.repeats)
     print(f"{'master':36s} {'setting':14s} {'macro steps':>11s} {'error':>9s} {'energy':>10s} {'per onset':>10s} "
           f"{'seconds':>8s}")
     for p in points:
@@ -59,7 +65,25 @@ def main(argv: list[str] | None = None) -> int:
     for p in reaching:
         print(f"{p.master}, {p.setting}: error {p.error:.2g}, energy created per contact onset {abs(p.per_onset):.2g} "
               "of the largest kinetic energy (goal: below 1e-6)")
+    (c_steps, c_seconds), (py_steps, py_seconds) = loops["C"], loops["Python"]
+    print(f"--contact-steps 100, {c_steps} macro steps: C loop {1e6 * c_seconds / c_steps:.1f} us per macro step, "
+          f"Python loop {1e6 * py_seconds / py_steps:.1f} us: {py_seconds / c_seconds:.1f} times")
     return 0
+
+
+def compare_loops(system, repeats: int) -> dict[str, tuple[int, float]]:
+    """(macro steps, best seconds) of the contact steps in the C loop and in the Python loop, run alternately."""
+    best: dict[str, tuple[int, float]] = {}
+    for _ in range(max(repeats, 1)):
+        for name, native in (("C", True), ("Python", False)):
+            with Master(system, MasterOptions(stop=STOP, step=0.01, contact_steps=100)) as master:
+                master.use_native = native
+                start = time.perf_counter()
+                result = master.run()
+                seconds = time.perf_counter() - start
+            if name not in best or seconds < best[name][1]:
+                best[name] = (result.macro_steps, seconds)
+    return best
 
 
 if __name__ == "__main__":

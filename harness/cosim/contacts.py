@@ -14,8 +14,8 @@ steps over it or costs a million steps. The control watches every component with
   acceleration changed, a body arrived from outside the prediction) is rolled back through every unit's
   FMU state and redone half way to the secant estimate of the onset (but no shorter than the landing
   precision, a thousandth of a contact step: a step that short is kept even if it overshoots, as a
-  grazing contact's does), up to `MAX_LANDINGS` times; the approach then lands on the onset as above. Only a step that begins apart can overshoot: the FMU states
-  are saved before those alone.
+  grazing contact's does), up to `MAX_LANDINGS` times; the approach then lands on the onset as above.
+  Only a step that begins apart can overshoot: the FMU states are saved before those alone.
 * In contact (a gap < 0): the overlap behaves locally as an oscillator of angular frequency omega^2 =
   |d(gap_rate)/dt| / |gap|, so half a period pi / omega is the contact's duration; the step is that over
   `steps_per_contact`, grown at most twofold per step. At an overlap shallower than one step's approach,
@@ -34,6 +34,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from harness.cosim.algorithms import DONE, Exchange, Outcome
+from harness.cosim.controls import ends_interval
 from harness.cosim.energy import EnergyController
 from harness.cosim.unit import Snapshot, Unit
 from harness.errors import HarnessError
@@ -44,6 +45,10 @@ GROWTH = 2.0  # the largest ratio of one macro step to the one before, in and af
 FIRST_CONTACT_STEP = 1e-4  # the contact step before any contact was seen, as a share of the interval
 LANDED = 1e-3  # an onset predicted within this share of a contact step is reached
 SMALLEST = 2.0 ** -40  # the smallest macro step, as a share of the interval: below it the run stops, named
+# The energy controller's shortest step here, as a share of the interval: the bonds measure the energy to
+# about |F| ulp(x) per step (1e-14 J on the cradle), and a controller that chases that rounding shrinks its
+# steps to nothing (the cradle at 1e-5 s and 1e-3 J stopped at 9e-18 s)
+ENERGY_SMALLEST = 2.0 ** -20
 
 
 @dataclass(frozen=True)
@@ -138,8 +143,7 @@ class ContactSteps:
             state = self._state()
             self._landing = False
             step, touching = self._planned(state, t_end - t)
-            # the interval's last step also where the time's rounding would leave a sliver of it
-            last = (t_end - t) - step <= max(1e-12 * (t_end - t), 8 * math.ulp(t_end))
+            last = ends_interval(t, t_end, step)
             if not last and step < self.largest * SMALLEST:
                 self.failure = self.too_small(t)
                 return Outcome(ERROR)

@@ -20,6 +20,12 @@ from harness.cosim.unit import Snapshot
 from harness.fmi.fmu_instance import DISCARD, ERROR
 
 
+def ends_interval(t: float, t_end: float, step: float) -> bool:
+    """Whether a step from t is the interval's last: it reaches t_end to 1e-12 of the room left, or to a few
+    roundings of t_end (so that the time's rounding never leaves a sliver of an interval to step)."""
+    return (t_end - t) - step <= max(1e-12 * (t_end - t), 8 * math.ulp(t_end))
+
+
 class Stepper(Protocol):
     def step(self, t: float, H: float) -> Outcome: ...
 

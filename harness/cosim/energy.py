@@ -38,6 +38,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from harness.cosim.algorithms import DONE, Exchange, Outcome
+from harness.cosim.controls import ends_interval
 from harness.cosim.structure import System
 from harness.cosim.unit import Unit
 from harness.errors import HarnessError
@@ -276,7 +277,7 @@ class EnergyStepControl:
 
     def advance(self, t: float, t_end: float) -> Outcome:
         while t < t_end:
-            last = self.controller.h >= (t_end - t) * (1 - 1e-12)
+            last = ends_interval(t, t_end, self.controller.h)
             step = t_end - t if last else self.controller.h
             outcome = self.bonded.step(t, step)
             if outcome.status == DISCARD:

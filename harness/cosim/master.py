@@ -28,7 +28,7 @@ from typing import Callable
 import numpy as np
 
 from harness.cosim.algorithms import ALGORITHMS, Exchange
-from harness.cosim.contacts import ContactSteps, contact_watches
+from harness.cosim.contacts import ENERGY_SMALLEST, ContactSteps, contact_watches
 from harness.cosim.energy import BondedStep, EnergyController, EnergyStepControl, PowerBonds, order_of
 from harness.cosim.controls import Iteration, RetryOnDiscard, StepDoubling, Stepper, Tally
 from harness.cosim.native_core import NativeLoop, load_core
@@ -40,12 +40,6 @@ from harness.fmi.results import TimeTable
 from harness.fmi.simulation import Progress, check_table_size, communication_grid
 
 EXTRAPOLATIONS = ("hold", "linear")
-
-
-# The energy controller's shortest step on a scene with contacts, as a share of the interval: the bonds
-# measure the energy to about |F| ulp(x) per step (1e-14 J on the cradle), and a controller that chases
-# that rounding shrinks its steps to nothing (the cradle at 1e-5 s and 1e-3 J stopped at 9e-18 s)
-ENERGY_SMALLEST = 2.0 ** -20
 
 
 @dataclass
@@ -161,12 +155,12 @@ class Master:
             self.bonds = PowerBonds(self.system, self.exchange)
             stepper = BondedStep(stepper, self.bonds, o.energy_correction)
             if o.energy_tol:
-                duration, order = o.stop - o.start, order_of(self.exchange)
-                if o.contact_steps or contact_watches(self.units):  # land on the contacts, size them by energy
-                    energy = EnergyController(o.energy_tol, duration, order, o.step, o.step * ENERGY_SMALLEST)
+                landing = bool(o.contact_steps or contact_watches(self.units))  # land on contacts, sized by energy
+                energy = EnergyController(o.energy_tol, o.stop - o.start, order_of(self.exchange), o.step,
+                                          o.step * (ENERGY_SMALLEST if landing else 2.0 ** -10))
+                if landing:
                     return ContactSteps(stepper, self.exchange, o.step, o.contact_steps, self.tally, energy)
-                return EnergyStepControl(stepper, EnergyController(o.energy_tol, duration, order, o.step,
-                                                                   o.step / 2 ** 10), self.tally)
+                return EnergyStepControl(stepper, energy, self.tally)
         if o.contact_steps:
             return ContactSteps(stepper, self.exchange, o.step, o.contact_steps, self.tally)
         if o.tolerance:

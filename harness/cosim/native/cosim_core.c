@@ -286,6 +286,7 @@ static int contact_advance(ContactControl *c, CoreUnit *units, int n_units, doub
         double step, wanted;
         contact_values(c, units, linear);
         step = contact_plan(c, t_end - t, &touching, &landing, &wanted);
+        /* harness.cosim.controls.ends_interval */
         last = (t_end - t) - step <= fmax(1e-12 * (t_end - t), 8 * (nextafter(fabs(t_end), INFINITY) - fabs(t_end)));
         if (!last && step < c->largest * c->smallest_share) {
             c->failed = 1;
