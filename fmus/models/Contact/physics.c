@@ -8,6 +8,7 @@
  * configuration (fmi2Discard). In Co-Simulation the outputs belong to the end of each step, the centres
  * moved with their velocity inputs (and their derivatives, where set) over the step. */
 #include <math.h>
+#include <stdio.h>
 
 #include "framework.h"
 #include "constraints.h" /* GAP_ROUNDING: the same event rule as a compliant constraint */
@@ -17,7 +18,13 @@ enum { IN_A = 0, IN_AV = 3, IN_B = 6, IN_BV = 9 };
 
 int model_prepare(const double *real, const int32_t *integer, ModelConst *c, char *message, size_t size)
 {
-    (void)integer, (void)message, (void)size;
+    (void)integer;
+    /* Two points never overlap: the gap |b - a| cannot become negative, and the contact would never act */
+    if (!(real[VR_R_a] + real[VR_R_b] > 0.0)) {
+        snprintf(message, size, "the radii R_a = %g and R_b = %g make the bodies points, which never touch (allowed: "
+                 "R_a + R_b > 0)", real[VR_R_a], real[VR_R_b]);
+        return 1;
+    }
     c->k = real[VR_k];
     c->exponent = real[VR_exponent];
     c->c = real[VR_c];
