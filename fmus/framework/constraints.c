@@ -424,7 +424,9 @@ int constraint_outputs(const ModelConst *c, double t, const double *u, double *r
     past_contact(c, *c->active, z);
     for (i = 0; i < NC; i++) {
         real[CONSTRAINT_GAP_VRS[i]] = geo.g[i];
-        real[CONSTRAINT_FORCE_VRS[i]] = lambda[i];
+        /* a unilateral constraint never pulls: a resting one's force within rounding of its release (the indicator
+         * above keeps its sign for the event) is no pull */
+        real[CONSTRAINT_FORCE_VRS[i]] = c->law[i].bilateral || lambda[i] > 0.0 ? lambda[i] : 0.0;
         real[CONSTRAINT_INDICATOR_VRS[i]] = z[i];
         if (c->law[i].compliant && geo.g[i] < 0.0) { /* the energy the overlap stores */
             const double stored = c->law[i].stiffness * pow(-geo.g[i], c->law[i].exponent + 1.0) /
