@@ -21,6 +21,15 @@ steps over it or costs a million steps. The control watches every component with
   `steps_per_contact`, grown at most twofold per step. At an overlap shallower than one step's approach,
   that approach stands in for |gap| (so the accelerations the bodies had apart do not read as a stiff
   contact).
+* A contact's first steps are blind: until an overlap is deep enough to show the contact's frequency, the
+  step grows from the last contact's (at first a ten-thousandth of the interval), and a contact shorter than
+  that step is stepped through, the bodies driven deep into each other at once. The FMU states at the start
+  of the step that entered the contact are kept through those steps; where one changes a gap's rate by more
+  than one of `steps_per_contact` steps through a contact can (pi / steps_per_contact of the fastest approach,
+  a contact turning the rate v around as v cos(omega t); beside what the rates' slopes account for), the
+  units go back there and enter again with a contact step `REDO` times shorter, up to `MAX_LANDINGS` times.
+  (Hertz's chain has no time scale of its own: a stiffer contact is only shorter, the rates after it the
+  same.)
 * After the last contact ends, the step grows twofold per step back to the communication interval.
 * With the energy step control (`energy`, over steps that measure their bonds), no step is longer than the
   energy controller's: in contact that sizes the steps by the energy each exchange creates, beside (or,
@@ -49,6 +58,11 @@ SMALLEST = 2.0 ** -40  # the smallest macro step, as a share of the interval: be
 # about |F| ulp(x) per step (1e-14 J on the cradle), and a controller that chases that rounding shrinks its
 # steps to nothing (the cradle at 1e-5 s and 1e-3 J stopped at 9e-18 s)
 ENERGY_SMALLEST = 2.0 ** -20
+# A blind step in a contact that changes a gap's rate by more than SWING times what one of steps_per_contact steps
+# through a contact can change it was too long for the contact: back to the contact's entry, with a contact step
+# REDO times shorter
+SWING = 1.0
+REDO = 8.0
 
 
 @dataclass(frozen=True)
@@ -73,6 +87,16 @@ def contact_watches(units: list[Unit]) -> list[Watch]:
     """Every unit with the outputs gap and gap_rate."""
     return [Watch(u, u.real_outputs.index("gap"), u.real_outputs.index("gap_rate")) for u in units
             if "gap" in u.real_outputs and "gap_rate" in u.real_outputs]
+
+
+@dataclass
+class Entry:
+    """Where the units entered a contact: the FMU states at the start of the step that entered it, and the
+    control's own numbers there, to go back to while the contact's first steps are blind."""
+    snapshot: Snapshot
+    t: float
+    numbers: tuple  # contact_step, size, _wanted, last_rates, last_step, macro_steps, landed, energy's (h, last_error)
+    redos: int = 0
 
 
 class ContactSteps:
@@ -101,9 +125,16 @@ class ContactSteps:
         self.landed: list[float] = []  # the ends of the steps planned onto an onset
         self.failure = ""  # why the control stopped a run
         self._landing = False
+        self._blind = False  # the step planned last is in a contact whose frequency no overlap shows yet
+        self._entry: Entry | None = None  # the units where they entered a contact, while its first steps are blind
 
     def too_small(self, t: float) -> str:
         return f"the contact steps fell below {self.largest * SMALLEST:.3g} s after t = {t:.17g}"
+
+    def too_short(self, t: float) -> str:
+        return (f"a contact entered at t = {t:.17g} is shorter than its first contact steps, also after "
+                f"{MAX_LANDINGS} entries, each with a contact step {REDO:g} times shorter (the last "
+                f"{self.contact_step:.3g} s)")
 
     def _state(self) -> list[tuple[float, float, float]]:
         return [w.values(self.exchange, r, self.last_step) for w, r in zip(self.watches, self.last_rates)]
@@ -116,12 +147,14 @@ class ContactSteps:
             # the accelerations the bodies have from elsewhere (a neighbour's push) would read as a stiff contact
             deep = [(g, a) for g, r, a in touching if -g > abs(r) * self.size]
             omega = max((math.sqrt(abs(a) / -g) for g, a in deep), default=0.0)
-            step = min(math.pi / omega / self.per_contact if omega > 0 and self.per_contact else math.inf,
-                       GROWTH * self.size)
+            sized = math.pi / omega / self.per_contact if omega > 0 and self.per_contact else math.inf
+            self._blind = not sized <= GROWTH * self.size  # the step grows: the contact's frequency does not bound it
+            step = min(sized, GROWTH * self.size)
             if self.energy is not None:
                 step = min(step, self.energy.h)
             self.contact_step = step
         else:
+            self._blind = False
             step = min(self.largest, GROWTH * self.size)
             if self.energy is not None:
                 step = min(step, self.energy.h)
@@ -139,20 +172,34 @@ class ContactSteps:
         return min(step, room), bool(touching)
 
     def advance(self, t: float, t_end: float) -> Outcome:
+        try:
+            return self._advance(t, t_end)
+        finally:
+            self._leave_entry()  # no state outlives the interval: its rows are recorded
+
+    def _advance(self, t: float, t_end: float) -> Outcome:
         while t < t_end:
             state = self._state()
             self._landing = False
             step, touching = self._planned(state, t_end - t)
+            if not (touching and self._blind):  # the contact's frequency is known, or no contact acts
+                self._leave_entry()
             last = ends_interval(t, t_end, step)
             if not last and step < self.largest * SMALLEST:
                 self.failure = self.too_small(t)
                 return Outcome(ERROR)
             if last:
                 step = t_end - t
-            if touching:  # inside a contact no step is rolled back: no FMU states to save
+            if touching:  # inside a contact no step is rolled back, but to the contact's entry while blind
                 outcome = self.stepper.step(t, step)
                 if outcome.status == DISCARD:
                     return outcome
+                if self._entry is not None and self._swung(state, step):
+                    if self._entry.redos == MAX_LANDINGS:
+                        self.failure = self.too_short(self._entry.t)
+                        return Outcome(ERROR)
+                    t = self._enter_again()
+                    continue
             else:
                 step, last = self._landed_step(t, step, last, state)
                 if step is None:
@@ -172,7 +219,9 @@ class ContactSteps:
     def _landed_step(self, t: float, step: float, last: bool, state: list[tuple[float, float, float]]):
         """A step that began apart, rolled back and redone half way to the onset where it overshot one: the
         step taken and whether it ends the interval, or (None, the discard)."""
-        with Snapshot(self.units, self.stepper) as start:
+        numbers = self._numbers()
+        start = Snapshot(self.units, self.stepper)
+        try:
             for landing in range(MAX_LANDINGS + 1):
                 outcome = self.stepper.step(t, step)
                 if outcome.status == DISCARD:
@@ -186,7 +235,48 @@ class ContactSteps:
                 self.landings += 1
                 step = max(missed / 2, shortest)  # half way to the onset: the approach then lands on it as always
                 last, self._landing = False, False
+            if self._entry is None and any(float(w.unit.y_now[w.gap]) < 0.0 for w in self.watches):
+                self._entry, start = Entry(start, t, numbers), None  # into a contact: kept while it is blind
+        finally:
+            if start is not None:
+                start.release()
         return step, last
+
+    def _numbers(self) -> tuple:
+        """The control's numbers that a step changes, to go back to (Entry.numbers)."""
+        energy = (self.energy.h, self.energy.last_error) if self.energy is not None else None
+        return (self.contact_step, self.size, self._wanted, list(self.last_rates), self.last_step,
+                self.tally.macro_steps, len(self.landed), energy)
+
+    def _swung(self, before: list[tuple[float, float, float]], step: float) -> bool:
+        """After a blind step in a contact: whether a gap's rate changed by more than one contact step can change
+        it, SWING times pi / steps_per_contact of the fastest approach at the step's start (a contact turns the
+        rate v around as v cos(omega t), by at most v omega per second, over pi / omega), beside what the
+        rates' slopes account for."""
+        share = math.pi / self.per_contact if self.per_contact else 1.0
+        bound = SWING * (share * max(abs(r) for _, r, _ in before) + max(abs(a) for _, _, a in before) * step)
+        return any(abs(float(w.unit.y_now[w.rate]) - r) > bound for w, (_, r, _) in zip(self.watches, before))
+
+    def _enter_again(self) -> float:
+        """The units back where they entered the contact, the control's numbers too, and the contact step REDO
+        times shorter than at the last entry; returns the entry's time."""
+        entry = self._entry
+        entry.snapshot.restore()
+        entry.redos += 1
+        contact_step, self.size, self._wanted, rates, self.last_step, steps, landed, energy = entry.numbers
+        self.contact_step = contact_step / REDO ** entry.redos
+        self.last_rates = list(rates)
+        self.tally.macro_steps = steps
+        del self.landed[landed:]
+        if energy is not None:
+            self.energy.h, self.energy.last_error = energy
+        self.tally.retries += 1
+        return entry.t
+
+    def _leave_entry(self) -> None:
+        if self._entry is not None:
+            self._entry.snapshot.release()
+            self._entry = None
 
     def _overshoot(self, before: list[tuple[float, float, float]], step: float) -> float | None:
         """After a step that began apart: None where no gap fell below the landing depth, else the step to

@@ -31,7 +31,14 @@ class ContactControl(ctypes.Structure):
                 ("have_rates", ctypes.c_int), ("macro_steps", ctypes.c_long), ("retries", ctypes.c_long),
                 ("landings", ctypes.c_long), ("landed", _double_p), ("landed_capacity", ctypes.c_long),
                 ("n_landed", ctypes.c_long), ("failed", ctypes.c_int), ("failed_at", ctypes.c_double),
-                ("scratch", _double_p), ("states", ctypes.POINTER(ctypes.c_void_p)), ("saved", _double_p)]
+                ("scratch", _double_p), ("states", ctypes.POINTER(ctypes.c_void_p)), ("saved", _double_p),
+                ("swing", ctypes.c_double), ("redo", ctypes.c_double), ("blind", ctypes.c_int),
+                ("have_entry", ctypes.c_int), ("entry_redos", ctypes.c_int), ("entry_have_rates", ctypes.c_int),
+                ("entry_t", ctypes.c_double), ("entry_contact_step", ctypes.c_double),
+                ("entry_size", ctypes.c_double), ("entry_last_step", ctypes.c_double),
+                ("entry_macro_steps", ctypes.c_long), ("entry_n_landed", ctypes.c_long),
+                ("entry_rates", _double_p), ("entry_states", ctypes.POINTER(ctypes.c_void_p)),
+                ("entry_saved", _double_p)]
 
 
 class NativeContacts:
@@ -48,10 +55,12 @@ class NativeContacts:
                         np.array([w.gap for w in watches], dtype=np.intc),
                         np.array([w.rate for w in watches], dtype=np.intc),
                         np.zeros(len(watches)), np.zeros(self.LANDED_CAPACITY), np.zeros(3 * len(watches)),
+                        np.zeros(2 * sum(u.n_out for u in units)), np.zeros(len(watches)),
                         np.zeros(2 * sum(u.n_out for u in units))]
         self._states = (ctypes.c_void_p * len(units))()
+        self._entry_states = (ctypes.c_void_p * len(units))()
         c = self.struct = ContactControl()
-        unit_of, gap, rate, rates, landed, scratch, saved = self._arrays
+        unit_of, gap, rate, rates, landed, scratch, saved, entry_rates, entry_saved = self._arrays
         c.n_watches = len(watches)
         c.watch_unit, c.watch_gap, c.watch_rate = (a.ctypes.data_as(_int_p) for a in (unit_of, gap, rate))
         c.per_contact, c.max_landings = control.per_contact, contacts.MAX_LANDINGS
@@ -61,6 +70,9 @@ class NativeContacts:
                                                                                            saved))
         c.landed_capacity = self.LANDED_CAPACITY
         c.states = self._states
+        c.swing, c.redo = contacts.SWING, contacts.REDO
+        c.entry_rates, c.entry_saved = (a.ctypes.data_as(_double_p) for a in (entry_rates, entry_saved))
+        c.entry_states = self._entry_states
         c.contact_step, c.last_step, c.size = control.contact_step, control.last_step, control.size
         c.have_rates = int(all(r is not None for r in control.last_rates))
         if c.have_rates:
@@ -76,8 +88,10 @@ class NativeContacts:
         tally.macro_steps += c.macro_steps
         tally.retries += c.retries
         c.n_landed = c.landings = c.macro_steps = c.retries = 0
-        if c.failed:
+        if c.failed == 1:
             control.failure = control.too_small(c.failed_at)
+        elif c.failed == 2:
+            control.failure = control.too_short(c.failed_at)
 
 
 def load_core() -> ctypes.CDLL | None:

@@ -134,11 +134,20 @@ typedef struct {
     long macro_steps, retries, landings;
     double *landed;                  /* the ends of the steps planned onto an onset */
     long landed_capacity, n_landed;
-    int failed;                      /* the steps fell below the smallest at failed_at */
+    int failed;                      /* 1: the steps fell below the smallest at failed_at; 2: the contact entered
+                                        at failed_at stayed shorter than its first steps (contacts.py's too_short) */
     double failed_at;
     double *scratch;                 /* 3 n_watches: gap, rate and its slope per watch */
     void **states;                   /* n_units */
     double *saved;                   /* 2 x every unit's n_out: y_now and dy_now at the saved state */
+    /* where the units entered a contact, kept while its first steps are blind (contacts.py's Entry) */
+    double swing, redo;
+    int blind, have_entry, entry_redos, entry_have_rates;
+    double entry_t, entry_contact_step, entry_size, entry_last_step;
+    long entry_macro_steps, entry_n_landed;
+    double *entry_rates;             /* n_watches */
+    void **entry_states;             /* n_units */
+    double *entry_saved;             /* as saved */
 } ContactControl;
 
 static void contact_values(const ContactControl *c, const CoreUnit *units, int linear)
@@ -177,10 +186,13 @@ static double contact_plan(ContactControl *c, double room, int *touching, int *l
         }
     }
     if (*touching) {
-        step = fmin(omega > 0 ? PI / omega / c->per_contact : INFINITY, c->growth * c->size);
+        const double sized = omega > 0 ? PI / omega / c->per_contact : INFINITY;
+        step = fmin(sized, c->growth * c->size);
         c->contact_step = step;
+        c->blind = !(sized <= c->growth * c->size); /* the step grows: the contact's frequency does not bound it */
     } else {
         step = fmin(c->largest, c->growth * c->size);
+        c->blind = 0;
     }
     if (crossing) {
         if (onset <= c->contact_step * c->landed_share) step = fmin(step, c->contact_step);
@@ -253,11 +265,91 @@ static int restore_all(ContactControl *c, CoreUnit *units, int n_units, int *cul
     return CORE_OK;
 }
 
-/* A step that began apart, rolled back and redone half way to the onset where it overshot one */
+/* The entry's FMU states released */
+static void leave_entry(ContactControl *c, CoreUnit *units, int n_units)
+{
+    int k;
+    if (!c->have_entry) return;
+    for (k = 0; k < n_units; k++)
+        if (c->entry_states[k]) fmi_free_state(&units[k].calls, &c->entry_states[k]);
+    c->have_entry = 0;
+}
+
+/* The states just saved (save_all) become the entry of a contact, with the control's numbers before the step */
+static void keep_entry(ContactControl *c, int n_units, int n_saved_values, double t, double contact_step, double size,
+                       double last_step, int have_rates, long macro_steps, long n_landed)
+{
+    int k, w;
+    for (k = 0; k < n_units; k++) {
+        c->entry_states[k] = c->states[k];
+        c->states[k] = NULL;
+    }
+    for (k = 0; k < n_saved_values; k++) c->entry_saved[k] = c->saved[k];
+    for (w = 0; w < c->n_watches; w++) c->entry_rates[w] = c->last_rates[w];
+    c->have_entry = 1;
+    c->entry_redos = 0;
+    c->entry_t = t;
+    c->entry_contact_step = contact_step;
+    c->entry_size = size;
+    c->entry_last_step = last_step;
+    c->entry_have_rates = have_rates;
+    c->entry_macro_steps = macro_steps;
+    c->entry_n_landed = n_landed;
+}
+
+/* After a blind step in a contact: whether a gap's rate changed by more than one contact step can change it, swing
+ * times pi / per_contact of the fastest approach at the step's start, beside what the rates' slopes account for */
+static int swung(const ContactControl *c, const CoreUnit *units, double step)
+{
+    const double share = c->per_contact ? PI / c->per_contact : 1.0;
+    double fastest = 0.0, steepest = 0.0, bound;
+    int w;
+    for (w = 0; w < c->n_watches; w++) {
+        fastest = fmax(fastest, fabs(c->scratch[3 * w + 1]));
+        steepest = fmax(steepest, fabs(c->scratch[3 * w + 2]));
+    }
+    bound = c->swing * (share * fastest + steepest * step);
+    for (w = 0; w < c->n_watches; w++)
+        if (fabs(units[c->watch_unit[w]].y_now[c->watch_rate[w]] - c->scratch[3 * w + 1]) > bound) return 1;
+    return 0;
+}
+
+/* The units back where they entered the contact, the control's numbers too, and the contact step redo times
+ * shorter than at the last entry */
+static int enter_again(ContactControl *c, CoreUnit *units, int n_units, int *culprit)
+{
+    int k, i, w, offset = 0;
+    for (k = 0; k < n_units; k++) {
+        if (fmi_set_state(&units[k].calls, c->entry_states[k]) >= CORE_ERROR) {
+            *culprit = k;
+            return CORE_ERROR;
+        }
+        for (i = 0; i < units[k].n_out; i++, offset += 2) {
+            units[k].y_now[i] = c->entry_saved[offset];
+            units[k].dy_now[i] = c->entry_saved[offset + 1];
+        }
+    }
+    c->entry_redos++;
+    c->contact_step = c->entry_contact_step / pow(c->redo, c->entry_redos);
+    c->size = c->entry_size;
+    c->last_step = c->entry_last_step;
+    c->have_rates = c->entry_have_rates;
+    for (w = 0; w < c->n_watches; w++) c->last_rates[w] = c->entry_rates[w];
+    c->macro_steps = c->entry_macro_steps;
+    c->n_landed = c->entry_n_landed;
+    c->retries++;
+    return CORE_OK;
+}
+
+/* A step that began apart, rolled back and redone half way to the onset where it overshot one; where it enters a
+ * contact, its start is kept as the contact's entry */
 static int landed_step(ContactControl *c, CoreUnit *units, int n_units, double t, double *step, int *last,
                        int *landing, int gauss_seidel, int linear, int *stepped, int *culprit)
 {
-    int attempt, status = save_all(c, units, n_units, culprit);
+    const double contact_step = c->contact_step, size = c->size, last_step = c->last_step;
+    const int have_rates = c->have_rates;
+    const long macro_steps = c->macro_steps, n_landed = c->n_landed;
+    int attempt, w, k, values = 0, status = save_all(c, units, n_units, culprit);
     if (status != CORE_OK) return status;
     for (attempt = 0; attempt <= c->max_landings; attempt++) {
         double missed = 0.0;
@@ -272,13 +364,20 @@ static int landed_step(ContactControl *c, CoreUnit *units, int n_units, double t
         *last = 0;
         *landing = 0;
     }
+    if (status == CORE_OK && !c->have_entry)
+        for (w = 0; w < c->n_watches; w++)
+            if (units[c->watch_unit[w]].y_now[c->watch_gap[w]] < 0.0) {
+                for (k = 0; k < n_units; k++) values += 2 * units[k].n_out;
+                keep_entry(c, n_units, values, t, contact_step, size, last_step, have_rates, macro_steps, n_landed);
+                return status;
+            }
     release_states(c, units, n_units);
     return status;
 }
 
 /* Covers [t, t_end] with contact steps */
-static int contact_advance(ContactControl *c, CoreUnit *units, int n_units, double t, double t_end, int gauss_seidel,
-                           int linear, int *stepped, int *culprit)
+static int contact_steps(ContactControl *c, CoreUnit *units, int n_units, double t, double t_end, int gauss_seidel,
+                         int linear, int *stepped, int *culprit)
 {
     int w, status;
     while (t < t_end) {
@@ -286,6 +385,7 @@ static int contact_advance(ContactControl *c, CoreUnit *units, int n_units, doub
         double step, wanted;
         contact_values(c, units, linear);
         step = contact_plan(c, t_end - t, &touching, &landing, &wanted);
+        if (!(touching && c->blind)) leave_entry(c, units, n_units); /* the contact's frequency known, or none acts */
         /* harness.cosim.controls.ends_interval */
         last = (t_end - t) - step <= fmax(1e-12 * (t_end - t), 8 * (nextafter(fabs(t_end), INFINITY) - fabs(t_end)));
         if (!last && step < c->largest * c->smallest_share) {
@@ -294,9 +394,22 @@ static int contact_advance(ContactControl *c, CoreUnit *units, int n_units, doub
             return CORE_ERROR;
         }
         if (last) step = t_end - t;
-        status = touching ? macro_step(units, n_units, t, step, gauss_seidel, linear, stepped, culprit)
-                          : landed_step(c, units, n_units, t, &step, &last, &landing, gauss_seidel, linear, stepped,
-                                        culprit);
+        if (touching) {
+            status = macro_step(units, n_units, t, step, gauss_seidel, linear, stepped, culprit);
+            if (status != CORE_OK) return status;
+            if (c->have_entry && swung(c, units, step)) {
+                if (c->entry_redos == c->max_landings) {
+                    c->failed = 2;
+                    c->failed_at = c->entry_t;
+                    return CORE_ERROR;
+                }
+                if ((status = enter_again(c, units, n_units, culprit)) != CORE_OK) return status;
+                t = c->entry_t;
+                continue;
+            }
+        } else {
+            status = landed_step(c, units, n_units, t, &step, &last, &landing, gauss_seidel, linear, stepped, culprit);
+        }
         if (status != CORE_OK) return status;
         c->macro_steps++;
         for (w = 0; w < c->n_watches; w++) c->last_rates[w] = c->scratch[3 * w + 1];
@@ -307,6 +420,15 @@ static int contact_advance(ContactControl *c, CoreUnit *units, int n_units, doub
         if (landing && c->n_landed < c->landed_capacity) c->landed[c->n_landed++] = t;
     }
     return CORE_OK;
+}
+
+/* contact_steps, and no FMU state kept beyond the interval (its rows are recorded) */
+static int contact_advance(ContactControl *c, CoreUnit *units, int n_units, double t, double t_end, int gauss_seidel,
+                           int linear, int *stepped, int *culprit)
+{
+    const int status = contact_steps(c, units, n_units, t, t_end, gauss_seidel, linear, stepped, culprit);
+    leave_entry(c, units, n_units);
+    return status;
 }
 
 /* Records grid[0], then steps to grid[1] (one macro step, or contact steps where `contacts` is given),
