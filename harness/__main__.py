@@ -1,12 +1,9 @@
 import signal
 import sys
 
+from harness import interrupts
 
-def _interrupt(signum, frame):
-    raise KeyboardInterrupt
-
-
-signal.signal(signal.SIGTERM, _interrupt)  # SIGTERM while the modules load is an interrupt too
+interrupts.install()  # Ctrl-C and SIGTERM while the modules load are an interrupt too
 try:
     from harness.cli import main
     code = main()

@@ -529,21 +529,13 @@ def main(argv: list[str] | None = None) -> int:
     files removed. Anything else is a fault of the harness: one line, exit code 3, and the
     traceback only with PENDULUM_TRACEBACK=1."""
     import os
-    import signal
     import warnings
 
-    stopping = []
-
-    def interrupt_once(signum, frame):
-        """The first Ctrl-C or SIGTERM interrupts; later ones are ignored, so that the clean-up
-        they started (rows kept, temporary files removed, workers ended) is not cut short."""
-        if not stopping:
-            stopping.append(signum)
-            raise KeyboardInterrupt
-    # a SIGINT ignored by whoever started us (a background job) stays ignored
-    handled = [signum for signum in (signal.SIGINT, signal.SIGTERM)
-               if signum == signal.SIGTERM or signal.getsignal(signum) is not signal.SIG_IGN] if threading_main() else []
-    previous = {signum: signal.signal(signum, interrupt_once) for signum in handled}
+    from harness import interrupts
+    # the first Ctrl-C or SIGTERM interrupts, never inside an FMU's callback, an import or a held
+    # section; later ones are ignored, so that the clean-up they started (rows kept, temporary files
+    # removed, workers ended) is not cut short (harness/interrupts.py)
+    installed = interrupts.install()
     try:
         try:
             args = build_parser().parse_args(argv)
@@ -573,13 +565,8 @@ def main(argv: list[str] | None = None) -> int:
         return _report("internal error", f"{type(error).__name__}: {error} (set PENDULUM_TRACEBACK=1 for the "
                        "traceback and report it)", 3)
     finally:
-        for signum, handler in previous.items():
-            signal.signal(signum, handler)
-
-
-def threading_main() -> bool:
-    import threading
-    return threading.current_thread() is threading.main_thread()
+        if installed:
+            interrupts.uninstall()
 
 
 def _report(kind: str, text: str, code: int) -> int:
