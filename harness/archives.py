@@ -8,6 +8,8 @@ one-line HarnessError instead of whichever exception zipfile or zlib raises.
 """
 from __future__ import annotations
 
+import atexit
+import os
 import shutil
 import tempfile
 import zipfile
@@ -18,6 +20,7 @@ from pathlib import Path, PurePosixPath
 from typing import IO
 
 from harness.errors import HarnessError
+from harness.interrupts import held
 
 MAX_MEMBERS = 10_000
 MAX_BYTES = 1 << 30  # uncompressed bytes extracted from one archive
@@ -136,14 +139,42 @@ def extract_members(archive: zipfile.ZipFile, target: Path, wanted: Callable[[st
     return len(chosen)
 
 
+# The temporary folders made here and not removed yet, with the process that made them: an interrupt
+# can come between a folder's making and its owner's taking it (a function returns it, the caller has
+# not stored it yet); what is left when the process exits is removed then.
+_FOLDERS: dict[Path, int] = {}
+
+
+def temporary_folder(prefix: str) -> Path:
+    """A new temporary folder, for `remove_folder` to remove, and removed at exit at the latest."""
+    with held():
+        folder = Path(tempfile.mkdtemp(prefix=prefix))
+        _FOLDERS[folder] = os.getpid()
+    return folder
+
+
+def remove_folder(folder: str | Path) -> None:
+    """A folder and all in it, gone (if it is there); an interrupt does not stop it half way."""
+    with held():
+        shutil.rmtree(folder, ignore_errors=True)
+        _FOLDERS.pop(Path(folder), None)
+
+
+@atexit.register
+def _remove_folders_left() -> None:
+    for folder, pid in list(_FOLDERS.items()):
+        if pid == os.getpid():  # not a forked child's copy of its parent's list
+            remove_folder(folder)
+
+
 @contextmanager
 def scratch_folder(prefix: str) -> Iterator[Path]:
     """A temporary folder removed when the block ends, however it ends."""
-    folder = Path(tempfile.mkdtemp(prefix=prefix))
+    folder = temporary_folder(prefix)
     try:
         yield folder
     finally:
-        shutil.rmtree(folder, ignore_errors=True)
+        remove_folder(folder)
 
 
 # x86_64 Linux in FMI 2.0 and FMI 3.0
@@ -152,14 +183,15 @@ THIS_PLATFORM = ("linux64", "x86_64-linux")
 
 def extract_fmu(fmu: Path, platforms: tuple[str, ...] = THIS_PLATFORM) -> Path:
     """The parts of an FMU an importer needs (model description, this platform's binaries,
-    resources) in a new temporary folder; the caller removes it. Nothing is left behind on error."""
-    folder = Path(tempfile.mkdtemp(prefix="fmu_"))
+    resources) in a new temporary folder; the caller removes it (`remove_folder`). Nothing is left
+    behind on error."""
+    folder = temporary_folder("fmu_")
     binaries = tuple(f"binaries/{platform}/" for platform in platforms)
     try:
         with open_archive(fmu, str(fmu)) as archive:
             extract_members(archive, folder, lambda name: name == "modelDescription.xml"
                             or name.startswith((*binaries, "resources/")), str(fmu))
     except BaseException:
-        shutil.rmtree(folder, ignore_errors=True)
+        remove_folder(folder)
         raise
     return folder

@@ -10,13 +10,12 @@ from __future__ import annotations
 
 import io
 import math
-import shutil
-import tempfile
 import xml.etree.ElementTree as ET
 import zipfile
 from pathlib import Path, PurePosixPath
 
-from harness.archives import MAX_BYTES, MAX_READ, extract_members, name_problem, open_archive, read_member
+from harness.archives import (MAX_BYTES, MAX_READ, extract_members, name_problem, open_archive, read_member,
+                              remove_folder, temporary_folder)
 from harness.cosim.structure import Bond, Component, Connection, System
 from harness.errors import HarnessError, first_problem
 from harness.fmi.fmu_instance import read_description
@@ -321,7 +320,7 @@ def load_ssp(path: Path) -> System:
                                    f"{problem or 'is empty'}; an .ssp loads its FMUs from inside the archive")
             source = PurePosixPath(source).as_posix()
         sources[element.name] = source
-    workspace = Path(tempfile.mkdtemp(prefix="ssp_")) if is_archive and elements else None
+    workspace = temporary_folder("ssp_") if is_archive and elements else None
     try:
         if workspace is not None:
             with open_archive(path, what) as archive:
@@ -351,5 +350,5 @@ def load_ssp(path: Path) -> System:
                       workspace=workspace, origin=what, bonds=bonds, description=description)
     except BaseException:
         if workspace is not None:
-            shutil.rmtree(workspace, ignore_errors=True)
+            remove_folder(workspace)
         raise

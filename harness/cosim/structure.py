@@ -4,11 +4,11 @@ positive finite times), whichever file it was read from."""
 from __future__ import annotations
 
 import math
-import shutil
 import weakref
 from dataclasses import dataclass, field
 from pathlib import Path
 
+from harness.archives import remove_folder
 from harness.errors import HarnessError
 
 
@@ -75,7 +75,7 @@ class System:
     description: str = ""  # free text (scene files)
 
     def __post_init__(self) -> None:
-        self._remove_workspace = (weakref.finalize(self, shutil.rmtree, self.workspace, True)
+        self._remove_workspace = (weakref.finalize(self, remove_folder, self.workspace)
                                   if self.workspace is not None else None)
         self.check()
 

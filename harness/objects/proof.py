@@ -17,7 +17,6 @@ from __future__ import annotations
 
 import ctypes
 import math
-import shutil
 import zipfile
 from dataclasses import dataclass
 from pathlib import Path
@@ -25,7 +24,7 @@ from pathlib import Path
 import numpy as np
 import sympy as sp
 
-from harness.archives import extract_fmu
+from harness.archives import extract_fmu, remove_folder
 from harness.errors import HarnessError
 from harness.fmi.fmu_instance import OK, FmuInstance, accepted_methods, read_description
 from harness.fmi.methods import ADAPTIVE, COUNTER_NAMES, METHODS, VARIABLE_ORDER, fixed_step_settings
@@ -315,7 +314,7 @@ def model_exchange_with_cvode(fmu: Path, spec: ObjectSpec) -> Proof:
     except Exception as error:  # fmpy raises plain exceptions for a failing FMU call
         return Proof("Model Exchange with CVode", False, f"fmpy's CVode failed: {str(error).splitlines()[0]}")
     finally:
-        shutil.rmtree(unzipped, ignore_errors=True)
+        remove_folder(unzipped)
     final = np.array([result[name][-1] for name in names])
     deviation = float(np.max(np.abs(final - reference))) / (1.0 + float(np.max(np.abs(reference))))
     passed = bool(np.all(np.isfinite(final))) and math.isclose(result["time"][-1], duration) and deviation < 1e-6

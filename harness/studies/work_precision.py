@@ -18,7 +18,6 @@ repeats, the instance loaded once and reset between repeats).
 from __future__ import annotations
 
 import math
-import shutil
 import statistics
 import time
 from dataclasses import dataclass
@@ -251,7 +250,7 @@ def _scipy_point(task: Task, reference: TracedReference) -> Point:
 def _cvode_point(task: Task, reference: TracedReference) -> Point:
     from fmpy import simulate_fmu
     from fmpy.model_description import read_model_description
-    from harness.archives import extract_fmu
+    from harness.archives import extract_fmu, remove_folder
     description = read_model_description(task.fmu)  # read once: simulate_fmu would parse it every run
     columns = traced_columns(task.fmu)
     description_names = {v.name for v in description.modelVariables}
@@ -264,7 +263,7 @@ def _cvode_point(task: Task, reference: TracedReference) -> Point:
     try:
         seconds, result = _median_seconds(run, task.repeats)
     finally:
-        shutil.rmtree(unzipped, ignore_errors=True)
+        remove_folder(unzipped)
     # fmpy records the rows before and after each event: an event is where n_events changes
     changed = np.flatnonzero(np.diff(result["n_events"])) + 1 if "n_events" in result.dtype.names else []
     times = sorted({float(result["time"][k]) for k in changed})
