@@ -207,13 +207,15 @@ def test_an_interrupted_run_keeps_its_rows_and_removes_its_temporary_folders(fmu
     assert [p.name for p in tmp_path.iterdir() if p.name.endswith(".part")] == []
 
 
-def test_no_fmu_state_outlives_its_use_over_a_long_iterated_run(fmu_paths):
+def test_no_fmu_state_outlives_its_use_over_a_long_iterated_run(fmu_paths, monkeypatch):
     """100 macro steps, each iterated to 1e-10 (a state saved and restored per pass) under step
     doubling and retry on discard: at every recorded row each component holds exactly what it held
     before the first step (counted through the FMU's memory callbacks), so every state the parts
     saved was released once it had served, and nothing after close."""
     from harness.cosim.master import Master, MasterOptions
     from harness.cosim.system import load_system
+    from harness.fmi.fmu_instance import LogCollector
+    monkeypatch.setattr(LogCollector, "counting", True)
     with load_system(PROJECT_ROOT / "scenes" / "coupled_pendulums.json") as system:
         master = Master(system, MasterOptions(stop=10.0, step=0.1, iterate_tol=1e-10, tolerance=1e-4,
                                               on_discard="retry"))
@@ -228,11 +230,13 @@ def test_no_fmu_state_outlives_its_use_over_a_long_iterated_run(fmu_paths):
         assert [unit.instance.log.live_blocks for unit in master.units] == [0] * len(master.units)
 
 
-def test_a_discard_inside_an_iterated_step_releases_its_states(fmu_paths):
+def test_a_discard_inside_an_iterated_step_releases_its_states(fmu_paths, monkeypatch):
     """A step that fails deep inside retry and iteration (every halving discards) leaves no state
     behind: the run stops with its message and the components hold what they held before it."""
     from harness.cosim.master import Master, MasterOptions
     from harness.cosim.system import load_system
+    from harness.fmi.fmu_instance import LogCollector
+    monkeypatch.setattr(LogCollector, "counting", True)
     with load_system(PROJECT_ROOT / "scenes" / "coupled_pendulums.json") as system:
         # the spring's rest length 0 with both ends at one point is fine; a huge stiffness blows up
         system.components[0].start.update(k=1e9)

@@ -10,10 +10,10 @@ from __future__ import annotations
 import ctypes
 import math
 import re
-import shutil
 from dataclasses import dataclass, field
 from functools import lru_cache
 from pathlib import Path
+from typing import ClassVar
 from xml.etree import ElementTree
 
 import numpy as np
@@ -23,11 +23,12 @@ from fmpy.fmi2 import (FMU2Model, FMU2Slave, fmi2CallbackAllocateMemoryTYPE, fmi
 from fmpy.fmi3 import FMU3Model, FMU3Slave
 from fmpy.fmi1 import calloc, free
 
-from harness.archives import extract_fmu
+from harness.archives import extract_fmu, remove_folder
 from harness.errors import HarnessError, first_problem
 from harness.fmi.binaries import checked_identifier, elf_problem
 from harness.fmi.calls import FUNCTIONS, TYPES, Calls, scalar_type
 from harness.fmi.methods import FREE_MOTION_ONLY, METHODS
+from harness.interrupts import called_from_c, held
 
 # The x86_64 Linux binary's folder, per FMI version.
 PLATFORM_FOLDERS = {"2.0": "linux64", "3.0": "x86_64-linux"}
@@ -46,6 +47,12 @@ class LogMessage:
         return f"[{STATUS_NAMES[self.status]}] {self.text}"
 
 
+# libc's calloc and free as the FMU's memory functions: C calls them without running any Python, so no
+# exception (an interrupt) can hand the FMU a block that is none
+_LIBC_CALLOC = ctypes.cast(calloc, ctypes.c_void_p).value
+_LIBC_FREE = ctypes.cast(free, ctypes.c_void_p).value
+
+
 @dataclass
 class LogCollector:
     """Callbacks whose logger appends to this instance's messages: fmi2's logger and memory
@@ -53,31 +60,39 @@ class LogCollector:
 
     fmpy's native logger proxy (which formats printf arguments) keeps one logger for the whole
     process, so it is not used here: each instance keeps its own log. Messages arrive as the FMU
-    formatted them; any printf arguments an FMU passes separately are not expanded."""
+    formatted them; any printf arguments an FMU passes separately are not expanded.
+
+    The memory functions are libc's own. With `counting` set (tests set it on the class) they are
+    Python functions that also count the blocks the FMU holds (`live_blocks`)."""
     messages: list[LogMessage] = field(default_factory=list)
-    live_blocks: int = 0  # memory blocks the FMU allocated and has not freed yet (its instance, its states)
+    live_blocks: int = 0  # with `counting`: memory blocks the FMU allocated and has not freed yet
+    counting: ClassVar[bool] = False
 
     def __post_init__(self) -> None:
+        @called_from_c
         def log(env, instance_name, status, category, message):
             self.messages.append(LogMessage(status, (category or b"").decode(), (message or b"").decode()))
 
+        @called_from_c
         def allocate(count, size):
             block = calloc(count, size)
             self.live_blocks += bool(block)
             return block
 
+        @called_from_c
         def release(block):
             self.live_blocks -= bool(block)
             free(block)
 
         self._logger = fmi2CallbackLoggerTYPE(log)  # keep references: ctypes callbacks die with them
-        self._allocate = fmi2CallbackAllocateMemoryTYPE(allocate)
-        self._free = fmi2CallbackFreeMemoryTYPE(release)
+        self._allocate = fmi2CallbackAllocateMemoryTYPE(allocate if self.counting else _LIBC_CALLOC)
+        self._free = fmi2CallbackFreeMemoryTYPE(release if self.counting else _LIBC_FREE)
         self.callbacks = fmi2CallbackFunctions()
         self.callbacks.logger = self._logger
         self.callbacks.allocateMemory = self._allocate
         self.callbacks.freeMemory = self._free
 
+    @called_from_c
     def fmi3_log_message(self, environment, status, category, message) -> None:
         self.messages.append(LogMessage(status, (category or b"").decode(), (message or b"").decode()))
 
@@ -178,12 +193,15 @@ class FmuInstance:
         self._items: dict[str, dict[str, int]] = {}
         self.model_description = description if description is not None else read_description(self.path)
         self.version = self.model_description.fmiVersion
-        self._extracted = unzipdir is None  # a folder this instance made, and removes when freed
-        self.unzipdir = unzipdir or str(extract_fmu(self.path, (PLATFORM_FOLDERS[self.version],)))
+        self.unzipdir, self._extracted = unzipdir, False  # _extracted: a folder this instance made, removed when freed
         try:
+            if unzipdir is None:
+                with held():  # the folder is this instance's once it exists
+                    self.unzipdir = str(extract_fmu(self.path, (PLATFORM_FOLDERS[self.version],)))
+                    self._extracted = True
             self._load(kind, name, logging_on)
         except BaseException:
-            self._remove_extracted()
+            self.free()
             raise
 
     @property
@@ -207,29 +225,30 @@ class FmuInstance:
             raise HarnessError(f"{self.path}: {folder}/{library.name} {problem}")
         fmi3 = self.version == "3.0"
         cls = {(False, "CS"): FMU2Slave, (False, "ME"): FMU2Model, (True, "CS"): FMU3Slave, (True, "ME"): FMU3Model}
-        try:
-            if self._template is not None and self._template.kind == kind:
-                fmu = _sharing(self._template.loaded, str(library), name)
-            else:
-                fmu = cls[fmi3, kind](guid=self.model_description.guid, unzipDirectory=self.unzipdir,
-                                      modelIdentifier=interface.modelIdentifier, instanceName=name)
-        except Exception as error:  # fmpy raises plain exceptions when the binary cannot be loaded
-            raise HarnessError(f"{self.path}: cannot load {library.name} ({first_problem(error)})") from None
-        self.loaded = fmu  # what a further instance of this FMU may share (`template`)
-        self.library = library
-        try:
-            if fmi3:
-                options = {"earlyReturnAllowed": True} if self.early_return and kind == "CS" else {}
-                fmu.instantiate(loggingOn=logging_on, logMessage=self.log.fmi3_log_message, **options)
-            else:
-                fmu.instantiate(callbacks=self.log.callbacks, loggingOn=logging_on)
-        except Exception:
-            fmu.freeLibrary()
-            what = "fmi3Instantiate" + ("CoSimulation" if kind == "CS" else "ModelExchange") if fmi3 \
-                else "fmi2Instantiate"
-            raise HarnessError(f"{self.path}: {what} failed: {self.last_message()}") from None
-        self.fmu = fmu
-        self.kind = kind
+        with held():  # the library loaded and instantiated is this object's, which frees it
+            try:
+                if self._template is not None and self._template.kind == kind:
+                    fmu = _sharing(self._template.loaded, str(library), name)
+                else:
+                    fmu = cls[fmi3, kind](guid=self.model_description.guid, unzipDirectory=self.unzipdir,
+                                          modelIdentifier=interface.modelIdentifier, instanceName=name)
+            except Exception as error:  # fmpy raises plain exceptions when the binary cannot be loaded
+                raise HarnessError(f"{self.path}: cannot load {library.name} ({first_problem(error)})") from None
+            self.loaded = fmu  # what a further instance of this FMU may share (`template`)
+            self.library = library
+            try:
+                if fmi3:
+                    options = {"earlyReturnAllowed": True} if self.early_return and kind == "CS" else {}
+                    fmu.instantiate(loggingOn=logging_on, logMessage=self.log.fmi3_log_message, **options)
+                else:
+                    fmu.instantiate(callbacks=self.log.callbacks, loggingOn=logging_on)
+            except Exception:
+                fmu.freeLibrary()
+                what = "fmi3Instantiate" + ("CoSimulation" if kind == "CS" else "ModelExchange") if fmi3 \
+                    else "fmi2Instantiate"
+                raise HarnessError(f"{self.path}: {what} failed: {self.last_message()}") from None
+            self.fmu = fmu
+            self.kind = kind
 
     # ---- variables by name
     def reference(self, name: str) -> int:
@@ -460,15 +479,13 @@ class FmuInstance:
             raise HarnessError(f"{self.path.name}: {what} returned {STATUS_NAMES[status]}: {self.last_message()}")
 
     def free(self) -> None:
-        if self.fmu is not None:
-            self.fmu.freeInstance()
-            self.fmu = None
-        self._remove_extracted()
-
-    def _remove_extracted(self) -> None:
-        if self._extracted:
-            shutil.rmtree(self.unzipdir, ignore_errors=True)
-            self._extracted = False
+        with held():  # an interrupt does not leave the instance or its folder half freed
+            if self.fmu is not None:
+                fmu, self.fmu = self.fmu, None
+                fmu.freeInstance()
+            if self._extracted:
+                self._extracted = False
+                remove_folder(self.unzipdir)
 
     def __enter__(self) -> "FmuInstance":
         return self
@@ -513,25 +530,28 @@ class SharedFmus:
         path = Path(fmu).resolve() if Path(fmu).exists() else Path(fmu)
         if path not in self._extracted:
             description = read_description(path)
-            folder = extract_fmu(path, (PLATFORM_FOLDERS[description.fmiVersion],))
-            self._extracted[path] = (str(folder), description)
+            with held():  # the folder is this object's once it exists
+                folder = extract_fmu(path, (PLATFORM_FOLDERS[description.fmiVersion],))
+                self._extracted[path] = (str(folder), description)
         unzipdir, description = self._extracted[path]
-        instance = FmuInstance(fmu, kind=kind, name=name, unzipdir=unzipdir, description=description,
-                               template=self._templates.get((path, kind)))
-        if (path, kind) not in self._templates:
-            self._templates[path, kind] = instance
-            self._held.append(ctypes.CDLL(str(instance.library))._handle)
+        with held():  # the instance and its place as the FMU's template (with a library reference) together
+            instance = FmuInstance(fmu, kind=kind, name=name, unzipdir=unzipdir, description=description,
+                                   template=self._templates.get((path, kind)))
+            if (path, kind) not in self._templates:
+                self._templates[path, kind] = instance
+                self._held.append(ctypes.CDLL(str(instance.library))._handle)
         return instance
 
     def close(self) -> None:
         from fmpy import freeLibrary
-        self._templates = {}
-        held, self._held = self._held, []
-        for handle in held:
-            freeLibrary(handle)
-        folders, self._extracted = self._extracted, {}
-        for unzipdir, _ in folders.values():
-            shutil.rmtree(unzipdir, ignore_errors=True)
+        with held():  # an interrupt does not leave libraries or folders behind
+            self._templates = {}
+            handles, self._held = self._held, []
+            for handle in handles:
+                freeLibrary(handle)
+            folders, self._extracted = self._extracted, {}
+            for unzipdir, _ in folders.values():
+                remove_folder(unzipdir)
 
     def __enter__(self) -> "SharedFmus":
         return self
