@@ -19,6 +19,7 @@ from pathlib import Path
 from typing import IO
 
 from harness.errors import HarnessError
+from harness.interrupts import held
 
 
 PICTURE_FORMATS = (".png", ".svg", ".pdf")
@@ -107,8 +108,8 @@ def csv_header(columns: list[str]) -> str:
 class _Sink:
     """The temporary file's stream; a failed write marks the file as lost."""
 
-    def __init__(self, path: Path, stream: IO):
-        self.path, self.stream, self.failed = path, stream, False
+    def __init__(self, path: Path, stream: IO, temporary: str):
+        self.path, self.stream, self.temporary, self.failed = path, stream, temporary, False
         self.writes = 0  # calls of write() after the header
 
     def write(self, text: str | bytes) -> None:
@@ -125,25 +126,33 @@ def written(path: Path, header: str | None = None, binary: bool = False) -> Iter
     """A text sink whose content replaces `path` when the block ends (see the module's note). When
     the block fails before anything but the header was written, `path` is left as it was."""
     path = writable_file(path, "output")
+    sink = None
     try:
-        path.parent.mkdir(parents=True, exist_ok=True)
-        # a short prefix: the temporary name must fit where the target's own name just fits
-        descriptor, temporary = tempfile.mkstemp(prefix=f".{path.name[:40]}.", suffix=".part", dir=path.parent)
-        os.fchmod(descriptor, _mode_for(path))
-    except OSError as error:
-        raise HarnessError(f"{path}: cannot write here ({error.strerror})") from None
-    sink = _Sink(path, os.fdopen(descriptor, "wb" if binary else "w", **({} if binary else {"newline": "\n"})))
-    try:
+        with held():  # the temporary file, once it exists, is in the sink that _finish ends
+            try:
+                path.parent.mkdir(parents=True, exist_ok=True)
+                # a short prefix: the temporary name must fit where the target's own name just fits
+                descriptor, temporary = tempfile.mkstemp(prefix=f".{path.name[:40]}.", suffix=".part",
+                                                         dir=path.parent)
+            except OSError as error:
+                raise HarnessError(f"{path}: cannot write here ({error.strerror})") from None
+            sink = _Sink(path, os.fdopen(descriptor, "wb" if binary else "w", **({} if binary else {"newline": "\n"})),
+                         temporary)
+            try:
+                os.fchmod(descriptor, _mode_for(path))
+            except OSError as error:
+                raise HarnessError(f"{path}: cannot write here ({error.strerror})") from None
         if header is not None:
             sink.write(header)
             sink.writes = 0
         yield sink
     except BaseException:
-        if not sink.writes:
+        if sink is not None and not sink.writes:
             sink.failed = True  # nothing computed: keep what was there
         raise
     finally:
-        _finish(sink, temporary)
+        if sink is not None:
+            _finish(sink)
 
 
 def writable_file(path: Path, option: str) -> Path:
@@ -178,7 +187,12 @@ def write_figure(figure, path: Path, dpi: int = 110) -> None:
         sink.write(buffer.getvalue())
 
 
-def _finish(sink: _Sink, temporary: str) -> None:
+def _finish(sink: _Sink) -> None:
+    with held():  # an interrupt neither loses the rows nor leaves the temporary file
+        _end(sink, sink.temporary)
+
+
+def _end(sink: _Sink, temporary: str) -> None:
     try:
         try:
             sink.stream.close()  # flushes: it can fail on a full disk

@@ -38,6 +38,7 @@ from harness.errors import HarnessError, where
 from harness.fmi.fmu_instance import DISCARD, ERROR, OK, STATUS_NAMES, SharedFmus
 from harness.fmi.results import TimeTable
 from harness.fmi.simulation import Progress, check_table_size, communication_grid
+from harness.interrupts import held
 
 EXTRAPOLATIONS = ("hold", "linear")
 
@@ -125,7 +126,8 @@ class Master:
         try:  # whatever fails while setting up, the instances made so far are freed
             with where(system.origin, system.workspace):
                 for component in system.components:
-                    self.units.append(Unit(component, system, self.fmus, arena))
+                    with held():  # each instance made is in `units`, for free() to free
+                        self.units.append(Unit(component, system, self.fmus, arena))
                 self.options = dataclasses.replace(options, extrapolation=self._extrapolation(options))
                 self.exchange = Exchange(self.units, self.options.extrapolation == "linear")
                 self._check_states(options)
@@ -307,11 +309,12 @@ class Master:
         return loop if contacts is None or loop.saves_states else None
 
     def free(self) -> None:
-        for unit in self.units:
-            unit.free()
-        self.units = []
-        if self._owns_fmus:
-            self.fmus.close()
+        with held():  # an interrupt does not leave instances or extracted FMUs behind
+            units, self.units = self.units, []
+            for unit in units:
+                unit.free()
+            if self._owns_fmus:
+                self.fmus.close()
 
     def __enter__(self) -> "Master":
         return self

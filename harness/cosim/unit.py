@@ -10,6 +10,7 @@ import numpy as np
 from harness.cosim.structure import Component, System
 from harness.errors import HarnessError
 from harness.fmi.fmu_instance import ERROR, STATUS_NAMES, SharedFmus
+from harness.interrupts import held
 
 
 class Arena:
@@ -149,21 +150,14 @@ class Unit:
 class Snapshot:
     """Every unit's FMU state and exchanged values at one moment, to roll back to, with the
     bookkeeping of the stepper the rollback repeats (`bookkeeping()` / `restore_bookkeeping()`, where
-    it keeps any: the energy the power bonds measured). Released when the `with` block ends, whatever
-    happens inside it, so no state outlives its use."""
+    it keeps any: the energy the power bonds measured). Taken when the `with` block starts and released
+    when it ends, whatever happens inside it, so no state outlives its use: taken in __enter__, after
+    which an interrupt is sure to reach __exit__."""
 
     def __init__(self, units: list[Unit], stepper=None):
         self.units = units
         self.stepper = stepper if hasattr(stepper, "bookkeeping") else None
-        self.kept = self.stepper.bookkeeping() if self.stepper else None
         self.states: list[ctypes.c_void_p] = []
-        try:
-            for unit in units:
-                self.states.append(unit.save())
-        except BaseException:
-            self.release()
-            raise
-        self.values = [(unit.y_now.copy(), unit.dy_now.copy()) for unit in units]
 
     def restore(self) -> None:
         for unit, state, (y, dy) in zip(self.units, self.states, self.values):
@@ -173,11 +167,21 @@ class Snapshot:
             self.stepper.restore_bookkeeping(self.kept)
 
     def release(self) -> None:
-        states, self.states = self.states, []
-        for unit, state in zip(self.units, states):
-            unit.release(state)
+        with held():  # all of them, whatever the moment of an interrupt
+            states, self.states = self.states, []
+            for unit, state in zip(self.units, states):
+                unit.release(state)
 
     def __enter__(self) -> "Snapshot":
+        self.kept = self.stepper.bookkeeping() if self.stepper else None
+        try:
+            with held():  # every state saved is in `states`, for release() to release
+                for unit in self.units:
+                    self.states.append(unit.save())
+        except BaseException:
+            self.release()
+            raise
+        self.values = [(unit.y_now.copy(), unit.dy_now.copy()) for unit in self.units]
         return self
 
     def __exit__(self, *exc) -> None:
