@@ -2,10 +2,12 @@
 from __future__ import annotations
 
 import ctypes
+import time
 
 import numpy as np
 
 from harness.fmi.native_calls import FmiCalls, load_library
+from harness.interrupts import held
 
 _double_p = ctypes.POINTER(ctypes.c_double)
 _uint_p = ctypes.POINTER(ctypes.c_uint)
@@ -108,9 +110,9 @@ def load_core() -> ctypes.CDLL | None:
 class NativeLoop:
     """The C loop over the units' own buffers and C functions, for plain fixed-step runs and for contact
     steps (`contacts`, a ContactSteps over the plain algorithm). It runs in chunks, so that progress is
-    shown and rows reach the caller as they come."""
+    shown, rows reach the caller as they come and an interrupt (seen between two calls) ends a run at once."""
 
-    CHUNK = 20000  # rows per call
+    CHUNK_SECONDS = 0.1  # calls grow from a few rows to about this long, as the recorder's (harness/fmi/simulation.py)
 
     def __init__(self, core: ctypes.CDLL, units: list, gauss_seidel: bool, linear: bool, contacts=None, tally=None):
         from harness.fmi.native_calls import fill_calls
@@ -155,23 +157,28 @@ class NativeLoop:
         """Records grid[0], steps to each next point and records it. Returns (rows written, status,
         index of the unit that failed)."""
         rows_done, culprit = ctypes.c_long(), ctypes.c_int()
-        first = 0
+        first, chunk = 0, 16
         while True:
-            end = min(first + self.CHUNK, len(grid) - 1)
+            started = time.perf_counter()
+            end = min(first + chunk, len(grid) - 1)
             part = np.ascontiguousarray(grid[first:end + 1])
-            status = self.core.cosim_run(self.structs, self.n_units, part.ctypes.data_as(_double_p), len(part),
-                                         self.gauss_seidel, self.linear, table[first:].ctypes.data_as(_double_p),
-                                         table.shape[1], energy[first:].ctypes.data_as(_double_p), self.stepped,
-                                         ctypes.byref(self.contacts.struct) if self.contacts else None,
-                                         ctypes.byref(rows_done), ctypes.byref(culprit))
-            if self.contacts:
-                self.contacts.hand_back(self.tally)
-            rows = first + rows_done.value
-            if on_row is not None:
-                for row in table[first + (1 if first else 0):rows]:
-                    on_row(row)
+            with held():  # the rows a call computed reach the caller before an interrupt ends the run
+                status = self.core.cosim_run(self.structs, self.n_units, part.ctypes.data_as(_double_p), len(part),
+                                             self.gauss_seidel, self.linear, table[first:].ctypes.data_as(_double_p),
+                                             table.shape[1], energy[first:].ctypes.data_as(_double_p), self.stepped,
+                                             ctypes.byref(self.contacts.struct) if self.contacts else None,
+                                             ctypes.byref(rows_done), ctypes.byref(culprit))
+                if self.contacts:
+                    self.contacts.hand_back(self.tally)
+                rows = first + rows_done.value
+                if on_row is not None:
+                    for row in table[first + (1 if first else 0):rows]:
+                        on_row(row)
             if status != 0 or rows == len(grid):
                 return rows, status, culprit.value
             first = rows - 1  # the chunk's end, or where the contacts' landed onsets were handed over
             if progress is not None:
                 progress(grid[first], first / (len(grid) - 1))
+            # a call of about CHUNK_SECONDS (rows handed on included), growing at most fourfold
+            elapsed = time.perf_counter() - started
+            chunk = int(min(max(chunk * self.CHUNK_SECONDS / max(elapsed, 1e-9), 1), 4 * chunk, 1 << 24))
