@@ -195,10 +195,8 @@ class FmuInstance:
         self.version = self.model_description.fmiVersion
         self.unzipdir, self._extracted = unzipdir, False  # _extracted: a folder this instance made, removed when freed
         try:
-            if unzipdir is None:
-                with held():  # the folder is this instance's once it exists
-                    self.unzipdir = str(extract_fmu(self.path, (PLATFORM_FOLDERS[self.version],)))
-                    self._extracted = True
+            if unzipdir is None:  # (a folder an interrupt keeps from being stored here is removed at exit)
+                self.unzipdir, self._extracted = str(extract_fmu(self.path, (PLATFORM_FOLDERS[self.version],))), True
             self._load(kind, name, logging_on)
         except BaseException:
             self.free()
@@ -530,9 +528,9 @@ class SharedFmus:
         path = Path(fmu).resolve() if Path(fmu).exists() else Path(fmu)
         if path not in self._extracted:
             description = read_description(path)
-            with held():  # the folder is this object's once it exists
-                folder = extract_fmu(path, (PLATFORM_FOLDERS[description.fmiVersion],))
-                self._extracted[path] = (str(folder), description)
+            # (a folder an interrupt keeps from being stored here is removed at exit)
+            folder = extract_fmu(path, (PLATFORM_FOLDERS[description.fmiVersion],))
+            self._extracted[path] = (str(folder), description)
         unzipdir, description = self._extracted[path]
         with held():  # the instance and its place as the FMU's template (with a library reference) together
             instance = FmuInstance(fmu, kind=kind, name=name, unzipdir=unzipdir, description=description,
