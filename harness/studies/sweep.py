@@ -3,11 +3,13 @@ distributed cluster.
 
     scheduler=None        a process pool over `workers` local cores (default: all)
     scheduler="local"     a Dask LocalCluster started for the sweep (`workers` worker processes)
-    scheduler="HOST:PORT" an existing Dask scheduler; its workers need the harness installed and the
-                          FMU files at the same paths (a shared file system)
+    scheduler="HOST:PORT" an existing Dask scheduler; its workers need the harness installed, not the
+                          project's files
 
-Results come back in the order of the items. Every item is computed in a worker process, so a crash
-in one FMU run cannot take the caller down.
+On Dask the FMU files the items name travel with the sweep (`harness.studies.shipping`): each goes
+to each worker once, into the worker's local directory, and the item function gets that copy's
+path. Results come back in the order of the items. Every item is computed in a worker process, so a
+crash in one FMU run cannot take the caller down.
 """
 from __future__ import annotations
 
@@ -88,11 +90,19 @@ def _dask_map(function, items, scheduler: str, workers: int | None):
             finally:
                 signal.pthread_sigmask(signal.SIG_SETMASK, held)
             with cluster, Client(cluster) as client, dask.config.set({"temporary-directory": scratch}):
-                return client.gather(client.map(function, items, pure=False))
+                return _map_on(client, function, items, scheduler)
     try:
         client = Client(scheduler, timeout="5s")
     except Exception as error:  # refused, timed out, or something that is not a Dask scheduler answered
         detail = (str(error).strip().splitlines() or [type(error).__name__])[0]
         raise HarnessError(f"--scheduler {scheduler}: cannot connect ({detail})") from None
     with client:
-        return client.gather(client.map(function, items, pure=False))
+        return _map_on(client, function, items, scheduler)
+
+
+def _map_on(client, function, items: list, scheduler: str) -> list:
+    """The items on the client's workers, their FMUs sent along (once per worker: see `shipping`)."""
+    from dask.utils import funcname
+    from harness.studies.shipping import LocalFmus, ship
+    shipped = ship(client, items, scheduler)
+    return client.gather(client.map(LocalFmus(function), shipped, pure=False, key=funcname(function)))
