@@ -46,7 +46,10 @@ def cli_page() -> str:
              f"`harness COMMAND` (or `python -m harness COMMAND`): {parser.description}", "",
              "Exit codes: 0 done; 1 a simulation stopped by `fmi2Discard` (its rows kept) or a failed check; "
              "2 a user error (one line `harness: error: ...`); 130 interrupted (rows kept, temporary files "
-             "removed); 3 a fault of the harness (`PENDULUM_TRACEBACK=1` shows its traceback).", ""]
+             "removed); 3 a fault of the harness (`PENDULUM_TRACEBACK=1` shows its traceback).", "",
+             "Outputs, one rule for every file and folder a command writes: folders on its path that do not exist "
+             "yet are made; a folder, a device, a path below a file or one of the command's inputs is refused before "
+             "any work; a file is written beside its target and renamed over it, so that it appears whole.", ""]
     commands = next(a for a in parser._actions if isinstance(a, argparse._SubParsersAction))
     helps = {choice.dest: choice.help for choice in commands._choices_actions}
     lines += _table(["command", "what it does"], [[f"[`{name}`](#{name})", helps[name]]

@@ -597,6 +597,18 @@ def test_linear_model_is_solved_exactly(open_fmu, g, d, H):
     assert n_rhs == 0 and n_steps == 1
 
 
+@pytest.mark.parametrize("solver,tol,message", [
+    ("rkf45", 0.0, "rkf45 needs a tolerance: variable tol = 0"),
+    ("gbs", 1e-16, "gbs with tol = 1e-16: out of reach in double precision")])
+def test_linear_model_checks_the_method_settings_too(open_fmu, solver, tol, message):
+    """The closed form takes the step, but settings the method would refuse are refused as they are
+    with the nonlinear model: the same error, the state untouched."""
+    fmu = open_fmu("SimplePendulum")
+    fmu.initialize(model="linear", solver=solver, tol=tol, phi=0.3)
+    assert fmu.do_step(0.0, 0.1) == 3
+    assert message in fmu.last_message()
+
+
 def test_linear_model_conserves_its_energy(fmu_paths, unzipped):
     r = simulate(fmu_paths["SimplePendulum"], 50.0, 0.5, start_values={"model": "linear", "phi": 0.2},
                  unzipdir=unzipped["SimplePendulum"])

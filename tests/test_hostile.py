@@ -484,6 +484,23 @@ def test_output_paths(workspace):
     assert (workspace / "a_file").read_text() == "keep me"
 
 
+def test_every_output_makes_its_missing_folders(workspace):
+    """One rule for every output path: folders that do not exist yet are made (a parent that is a file is
+    refused, above), for a table, a picture, a reference table and an archive alike."""
+    def at(path: str) -> str:
+        return str(workspace / "made" / path)
+    cases = [(["simulate", "SimplePendulum", "--stop", "0.05", "--out", at("n1/a/x.csv")], ["n1/a/x.csv"]),
+             (["simulate", "SimplePendulum", "--stop", "0.05", "--out", at("x.csv"), "--plot", at("n2/b/x.png")],
+              ["n2/b/x.png"]),
+             (["run", str(SCENE), "--stop", "0.05", "--out", at("n3/c/x.csv"), "--reference", at("n4/d/r.csv")],
+              ["n3/c/x.csv", "n4/d/r.csv"]),
+             (["export", str(SCENE), "--ssp", at("n5/e/x.ssp")], ["n5/e/x.ssp"])]
+    for argv, made in cases:
+        outcome = cli(argv, workspace)
+        assert outcome.code == 0, outcome
+        assert all(Path(at(path)).is_file() for path in made), (argv, outcome)
+
+
 def test_a_failed_run_leaves_an_earlier_result_alone(workspace):
     out = workspace / "earlier.csv"
     assert cli(["simulate", "SimplePendulum", "--stop", "0.1", "--out", str(out)], workspace).code == 0

@@ -14,7 +14,7 @@ FRAMEWORK = ROOT / "fmus" / "framework"
 # share the bottom layer: an object's FMU is proven by running it (objects -> fmi) and the FMUs the
 # project builds are the registry's objects (fmi -> objects), so only the modules must not cycle.
 LAYERS = {
-    "errors": 0, "archives": 0, "output": 0, "processes": 0,
+    "errors": 0, "archives": 0, "output": 0, "processes": 0, "interrupts": 0,
     "objects": 1, "fmi": 1,
     "cosim": 2,
     "studies": 3,

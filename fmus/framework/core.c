@@ -97,7 +97,7 @@ void core_reset(Instance *inst)
 /* model_prepare guarded by the cross-parameter checks, so that no output can become NaN. */
 static int ensure_constants(Instance *inst, const char *function)
 {
-    char message[256];
+    char message[1024];
     if (inst->constants_valid) return 1;
     if (model_prepare(inst->s.real, inst->s.integer, &inst->constants, message, sizeof message)) {
         log_error(inst, "%s: %s", function, message);
@@ -250,31 +250,36 @@ static const double *acting_inputs(const Instance *inst, double *u)
 }
 #endif
 
+#if N_STATES > 0
+/* Whether the states in inst->s (`what`: where they come from) are ones to start from: regular, with finite
+ * derivatives and outputs; logs why not. */
+static int states_usable(Instance *inst, const char *function, const char *what)
+{
+    char reason[1024], states[256];
+    size_t used = 0;
+    int i, k;
+    if (state_acceptable(inst, inst->s.time, inst->s.real)) return 1;
+    k = first_non_finite_at(inst, inst->s.time, inst->s.real);
+    for (i = 0; i < N_STATES && used < sizeof states; i++) /* each state named, cut at the buffer's end */
+        used += (size_t)snprintf(states + used, sizeof states - used, "%s%s = %g", i ? ", " : "",
+                                 REAL_VARIABLES[i].name, inst->s.real[i]);
+    if (model_explain_singularity(&inst->constants, inst->s.time, inst->s.real, reason, sizeof reason))
+        log_error(inst, "%s: %s are refused: %s", function, what, reason);
+    else if (k >= 0)
+        log_error(inst, "%s: %s (%s) make %s not finite (allowed: states with finite derivatives and outputs)",
+                  function, what, states, REAL_VARIABLES[k].name);
+    else
+        log_error(inst, "%s: %s (%s) give a singular configuration", function, what, states);
+    return 0;
+}
+#endif
+
 Status core_exit_initialization(Instance *inst, const char *function)
 {
     inst->constants_valid = 0;
     if (!ensure_constants(inst, function)) return STATUS_ERROR;
 #if N_STATES > 0
-    if (!state_acceptable(inst, inst->s.time, inst->s.real)) {
-        char reason[256], states[256];
-        const int k = first_non_finite_at(inst, inst->s.time, inst->s.real);
-        size_t used = 0;
-        int i;
-        for (i = 0; i < N_STATES && used < sizeof states; i++) /* each state named, cut at the buffer's end */
-            used += (size_t)snprintf(states + used, sizeof states - used, "%s%s = %g", i ? ", " : "",
-                                     REAL_VARIABLES[i].name, inst->s.real[i]);
-        if (model_explain_singularity(&inst->constants, inst->s.time, inst->s.real, reason, sizeof reason))
-            log_error(inst, "%s: the start values of the states give a singular "
-                      "configuration: %s", function, reason);
-        else if (k >= 0)
-            log_error(inst, "%s: the start values of the states (%s) make %s not finite (allowed: start values "
-                      "with finite derivatives and outputs)", function, states,
-                      REAL_VARIABLES[k].name);
-        else
-            log_error(inst, "%s: the start values of the states (%s) give a singular configuration", function,
-                      states);
-        return STATUS_ERROR;
-    }
+    if (!states_usable(inst, function, "the start values of the states")) return STATUS_ERROR;
 #else
     {   /* without states, the outputs decide: the same promise as the models with states */
         double real[N_REAL];
@@ -619,25 +624,53 @@ static int machine_state_fits(const Instance *inst, int32_t state)
 /* A deserialized state passes the setters' checks: every value a user can set (parameters, inputs,
  * states) finite and in range, the parameters consistent together, and the framework's own numbers
  * (time, machine state, integrator memory) sane. Logs the first problem. */
-/* gbs's column proposal: 0 (none yet) or a target that leaves one column above it. */
-static int gbs_memory_valid(const IntegratorMemory *m)
+/* The integrator memory of a deserialized state: each field in its range, or a message naming the first that is
+ * not. */
+static int integrator_memory_refused(Instance *inst, const char *function, const IntegratorMemory *m)
 {
 #if N_STATES > 0
-    if (m->gbs_columns != 0 && (m->gbs_columns < 2 || m->gbs_columns >= GBS_MAX_COLUMNS)) return 0;
+    const int gbs_columns_ok = m->gbs_columns == 0 || (m->gbs_columns >= 2 && m->gbs_columns < GBS_MAX_COLUMNS);
+    const int gbs_top = GBS_MAX_COLUMNS - 1;
 #else
-    if (m->gbs_columns != 0) return 0;
+    const int gbs_columns_ok = m->gbs_columns == 0, gbs_top = 0;
 #endif
-    return m->gbs_rejected == 0 || m->gbs_rejected == 1;
+    const char *field = NULL, *allowed = "";
+    double value = 0.0;
+    if (m->ab_count < 0 || m->ab_count > AB_MAX_STEPS)
+        field = "Adams-Bashforth history length", value = m->ab_count, allowed = "[0, AB_MAX_STEPS]";
+    else if (m->ab_head < 0 || m->ab_head >= AB_MAX_STEPS)
+        field = "Adams-Bashforth history position", value = m->ab_head, allowed = "[0, AB_MAX_STEPS - 1]";
+    else if (!isfinite(m->ab_step))
+        field = "Adams-Bashforth step", value = m->ab_step, allowed = "finite";
+    else if (m->ab_restarted != 0 && m->ab_restarted != 1)
+        field = "Adams-Bashforth restart flag", value = m->ab_restarted, allowed = "0 or 1";
+    else if (!(m->step_proposal >= 0.0) || !isfinite(m->step_proposal))
+        field = "step size proposal", value = m->step_proposal, allowed = "[0, inf), finite";
+    else if (!gbs_columns_ok)
+        field = "gbs column proposal", value = m->gbs_columns, allowed = "0, or [2, GBS_MAX_COLUMNS - 1]";
+    else if (m->gbs_rejected != 0 && m->gbs_rejected != 1)
+        field = "gbs rejection flag", value = m->gbs_rejected, allowed = "0 or 1";
+    if (!field) return 0;
+    log_error(inst, "%s: the FMU state's integrator memory is invalid: its %s is %g (allowed: %s, AB_MAX_STEPS = %d, "
+              "GBS_MAX_COLUMNS - 1 = %d)", function, field, value, allowed, AB_MAX_STEPS, gbs_top);
+    return 1;
 }
 
 static int restored_state_valid(Instance *inst, const char *function, const SimState *s)
 {
-    char message[256];
+    char message[1024];
     ModelConst constants;
     int i;
-    if (!isfinite(s->time) || !isfinite(s->last_successful_time) || !machine_state_fits(inst, s->machine_state)) {
-        log_error(inst, "%s: the FMU state's time %g or machine state %d is invalid", function, s->time,
-                  (int)s->machine_state);
+    if (!isfinite(s->time) || !isfinite(s->last_successful_time)) {
+        log_error(inst, "%s: the FMU state's %s is %g (allowed: a finite time)", function,
+                  isfinite(s->time) ? "last successful time" : "time",
+                  isfinite(s->time) ? s->last_successful_time : s->time);
+        return 0;
+    }
+    if (!machine_state_fits(inst, s->machine_state)) {
+        log_error(inst, "%s: the FMU state's machine state is %d (allowed: one bit of a %s state, 0x%x)", function,
+                  (int)s->machine_state, inst->type == INTERFACE_CO_SIMULATION ? "Co-Simulation" : "Model Exchange",
+                  inst->type == INTERFACE_CO_SIMULATION ? (unsigned)CS_ANY : (unsigned)ME_ANY);
         return 0;
     }
     for (i = 0; i < N_REAL; i++)
@@ -663,14 +696,7 @@ static int restored_state_valid(Instance *inst, const char *function, const SimS
             return 0;
         }
 #endif
-    if (s->integrator.ab_count < 0 || s->integrator.ab_count > AB_MAX_STEPS || s->integrator.ab_head < 0 ||
-        s->integrator.ab_head >= AB_MAX_STEPS || !isfinite(s->integrator.ab_step) ||
-        (s->integrator.ab_restarted != 0 && s->integrator.ab_restarted != 1) ||
-        !(s->integrator.step_proposal >= 0.0) || !isfinite(s->integrator.step_proposal) ||
-        !gbs_memory_valid(&s->integrator)) {
-        log_error(inst, "%s: the FMU state's integrator memory is invalid", function);
-        return 0;
-    }
+    if (integrator_memory_refused(inst, function, &s->integrator)) return 0;
     if (first_non_finite(&s->integrator.ab_history[0][0], AB_MAX_STEPS * STATE_SLOTS) >= 0) {
         log_error(inst, "%s: the FMU state's Adams-Bashforth history holds a non-finite value", function);
         return 0;
@@ -679,12 +705,33 @@ static int restored_state_valid(Instance *inst, const char *function, const SimS
         log_error(inst, "%s: %s", function, message);
         return 0;
     }
+#if N_STATES > 0
+    {   /* its states checked as initialization checks start values (omega = 1e200 makes E_kin overflow) */
+        const SimState kept = inst->s;
+        const ModelConst kept_constants = inst->constants;
+        const int kept_valid = inst->constants_valid, kept_outputs = inst->outputs_valid;
+        int usable;
+        inst->s = *s;
+        inst->s.machine_state = MS_INITIALIZATION; /* no intermediate-step report from the check */
+        inst->constants = constants;
+#if N_CONSTRAINTS > 0
+        inst->constants.active = &inst->s.active_constraints;
+#endif
+        inst->constants_valid = 1;
+        usable = states_usable(inst, function, "the FMU state's states");
+        inst->s = kept;
+        inst->constants = kept_constants;
+        inst->constants_valid = kept_valid;
+        inst->outputs_valid = kept_outputs;
+        if (!usable) return 0;
+    }
+#endif
 #if N_CONSTRAINTS > 0
     for (i = 0; i < N_CONSTRAINTS; i++)
-        if ((s->active_constraints >> i & 1) && (constants.law[i].compliant || constants.law[i].bilateral)) break;
+        if ((s->active_constraints >> i & 1) && constants.law[i].bilateral) break;
     if (i < N_CONSTRAINTS || (s->active_constraints >> N_CONSTRAINTS) != 0) {
         log_error(inst, "%s: the FMU state's active constraints 0x%x name a constraint that cannot be active (allowed: "
-                  "a bit for each of the %d rigid unilateral constraints)", function, (unsigned)s->active_constraints,
+                  "a bit for each of the %d unilateral constraints, rigid or compliant)", function, (unsigned)s->active_constraints,
                   N_CONSTRAINTS);
         return 0;
     }
@@ -1047,7 +1094,9 @@ Status core_do_step(Instance *inst, const char *function, double t, double H)
         return STATUS_ERROR;
     }
     if (!ensure_constants(inst, function)) return STATUS_ERROR;
+    flush_subnormals_begin(inst);
     status = step_to(inst, function, t, H);
+    flush_subnormals_end(inst);
     if (status == STATUS_DISCARD) inst->s.machine_state = MS_STEP_FAILED;
     return status;
 }

@@ -53,6 +53,58 @@ typedef struct {
     fmi2Real nextEventTime;
 } fmi2EventInfo;
 
+/* An importer that compiles several source FMUs into one program gives each its own prefix
+ * (FMI 2.0: FMI2_FUNCTION_PREFIX): every FMI function is then named prefix + name. */
+#ifdef FMI2_FUNCTION_PREFIX
+#define FMI2_PASTE(a, b) a##b
+#define FMI2_PASTE_EXPANDED(a, b) FMI2_PASTE(a, b)
+#define FMI2_PREFIXED(name) FMI2_PASTE_EXPANDED(FMI2_FUNCTION_PREFIX, name)
+#define fmi2GetTypesPlatform FMI2_PREFIXED(fmi2GetTypesPlatform)
+#define fmi2GetVersion FMI2_PREFIXED(fmi2GetVersion)
+#define fmi2SetDebugLogging FMI2_PREFIXED(fmi2SetDebugLogging)
+#define fmi2Instantiate FMI2_PREFIXED(fmi2Instantiate)
+#define fmi2FreeInstance FMI2_PREFIXED(fmi2FreeInstance)
+#define fmi2SetupExperiment FMI2_PREFIXED(fmi2SetupExperiment)
+#define fmi2EnterInitializationMode FMI2_PREFIXED(fmi2EnterInitializationMode)
+#define fmi2ExitInitializationMode FMI2_PREFIXED(fmi2ExitInitializationMode)
+#define fmi2Terminate FMI2_PREFIXED(fmi2Terminate)
+#define fmi2Reset FMI2_PREFIXED(fmi2Reset)
+#define fmi2GetReal FMI2_PREFIXED(fmi2GetReal)
+#define fmi2GetInteger FMI2_PREFIXED(fmi2GetInteger)
+#define fmi2GetBoolean FMI2_PREFIXED(fmi2GetBoolean)
+#define fmi2GetString FMI2_PREFIXED(fmi2GetString)
+#define fmi2SetReal FMI2_PREFIXED(fmi2SetReal)
+#define fmi2SetInteger FMI2_PREFIXED(fmi2SetInteger)
+#define fmi2SetBoolean FMI2_PREFIXED(fmi2SetBoolean)
+#define fmi2SetString FMI2_PREFIXED(fmi2SetString)
+#define fmi2GetFMUstate FMI2_PREFIXED(fmi2GetFMUstate)
+#define fmi2SetFMUstate FMI2_PREFIXED(fmi2SetFMUstate)
+#define fmi2FreeFMUstate FMI2_PREFIXED(fmi2FreeFMUstate)
+#define fmi2SerializedFMUstateSize FMI2_PREFIXED(fmi2SerializedFMUstateSize)
+#define fmi2SerializeFMUstate FMI2_PREFIXED(fmi2SerializeFMUstate)
+#define fmi2DeSerializeFMUstate FMI2_PREFIXED(fmi2DeSerializeFMUstate)
+#define fmi2GetDirectionalDerivative FMI2_PREFIXED(fmi2GetDirectionalDerivative)
+#define fmi2EnterEventMode FMI2_PREFIXED(fmi2EnterEventMode)
+#define fmi2NewDiscreteStates FMI2_PREFIXED(fmi2NewDiscreteStates)
+#define fmi2EnterContinuousTimeMode FMI2_PREFIXED(fmi2EnterContinuousTimeMode)
+#define fmi2CompletedIntegratorStep FMI2_PREFIXED(fmi2CompletedIntegratorStep)
+#define fmi2SetTime FMI2_PREFIXED(fmi2SetTime)
+#define fmi2SetContinuousStates FMI2_PREFIXED(fmi2SetContinuousStates)
+#define fmi2GetDerivatives FMI2_PREFIXED(fmi2GetDerivatives)
+#define fmi2GetEventIndicators FMI2_PREFIXED(fmi2GetEventIndicators)
+#define fmi2GetContinuousStates FMI2_PREFIXED(fmi2GetContinuousStates)
+#define fmi2GetNominalsOfContinuousStates FMI2_PREFIXED(fmi2GetNominalsOfContinuousStates)
+#define fmi2SetRealInputDerivatives FMI2_PREFIXED(fmi2SetRealInputDerivatives)
+#define fmi2GetRealOutputDerivatives FMI2_PREFIXED(fmi2GetRealOutputDerivatives)
+#define fmi2DoStep FMI2_PREFIXED(fmi2DoStep)
+#define fmi2CancelStep FMI2_PREFIXED(fmi2CancelStep)
+#define fmi2GetStatus FMI2_PREFIXED(fmi2GetStatus)
+#define fmi2GetRealStatus FMI2_PREFIXED(fmi2GetRealStatus)
+#define fmi2GetIntegerStatus FMI2_PREFIXED(fmi2GetIntegerStatus)
+#define fmi2GetBooleanStatus FMI2_PREFIXED(fmi2GetBooleanStatus)
+#define fmi2GetStringStatus FMI2_PREFIXED(fmi2GetStringStatus)
+#endif
+
 #if defined(_WIN32)
 #define FMI2_Export __declspec(dllexport)
 #else

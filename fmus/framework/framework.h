@@ -13,10 +13,27 @@
 /* Internal names stay private to the binary, also when an importer compiles the sources without the
  * project's build flags: only the FMI functions are exported, so that two FMUs in one process never
  * call each other's internals. (Windows DLLs export only what is marked for export anyway.) */
-#if defined(__GNUC__) && !defined(_WIN32) && !defined(__CYGWIN__)
+#if defined(FMU_SINGLE_UNIT)
+/* fmu_fmi2.c and fmu_fmi3.c (what the model descriptions list for importers) compile the whole FMU as
+ * one translation unit, where internal names are static: several source FMUs then link into one
+ * program, each with its own FMI2_FUNCTION_PREFIX / FMI3_FUNCTION_PREFIX. A model uses only some of
+ * the framework's functions, hence `unused`. */
+#if defined(__GNUC__)
+#define INTERNAL static __attribute__((unused))
+#else
+#define INTERNAL static
+#endif
+#define INTERNAL_DATA static
+#define INTERNAL_DATA_DECLARATION static
+#elif defined(__GNUC__) && !defined(_WIN32) && !defined(__CYGWIN__)
 #define INTERNAL __attribute__((visibility("hidden")))
 #else
 #define INTERNAL
+#endif
+#ifndef INTERNAL_DATA
+/* tables defined in one file and read in others */
+#define INTERNAL_DATA INTERNAL
+#define INTERNAL_DATA_DECLARATION extern INTERNAL
 #endif
 
 /* Return codes, numbered as both FMI versions number theirs (fmi2Status, fmi3Status). */
@@ -133,7 +150,21 @@ struct Instance {
     double (*taylor_work)[TAYLOR_SLOTS];
     int logging_on;
     int return_at_events; /* FMI 3.0 Co-Simulation with earlyReturnAllowed: a step ends at the first event it handles */
+    /* The importer's floating-point control word while a step runs with subnormal numbers flushed
+     * (flush_subnormals); its callbacks run with it. */
+    unsigned long caller_float_control;
+    int flushing;
 };
+
+/* instance.c. A communication step runs with subnormal numbers flushed to zero, so that its cost does
+ * not depend on them (x86 and ARM cores take some hundred cycles per subnormal operand or result;
+ * they arise from states such as 1e-160 squared). Begin returns the importer's setting, which end
+ * restores; the importer's callbacks in between (logger, intermediate steps) run with its own
+ * setting. Elsewhere (WebAssembly) these do nothing. */
+INTERNAL void flush_subnormals_begin(Instance *inst);
+INTERNAL void flush_subnormals_end(Instance *inst);
+INTERNAL void caller_float_control_begin(Instance *inst);
+INTERNAL void caller_float_control_end(Instance *inst);
 
 /* instance.c. Logging: errors and discards are always reported; the rest only with debug logging on. */
 INTERNAL void log_error(Instance *inst, const char *fmt, ...);
@@ -142,6 +173,8 @@ INTERNAL void log_debug(Instance *inst, const char *fmt, ...);
 
 /* Index of the first non-finite value among n, or -1 when all are finite. */
 INTERNAL int first_non_finite(const double *values, int n);
+/* The name of Real variable k (its value reference), for messages. */
+INTERNAL const char *real_variable_name(int k);
 
 /* The current inputs, gathered into a contiguous array, and an array of inputs put into real[]. */
 INTERNAL void gather_inputs(const Instance *inst, double *u);

@@ -7,6 +7,54 @@
 #define MODEL_DESCRIPTION_TABLES /* INPUT_VRS */
 #include "framework.h"
 
+#if defined(__SSE2__) || defined(_M_X64) || (defined(_M_IX86_FP) && _M_IX86_FP >= 2)
+#include <xmmintrin.h>
+#define FLUSH_BITS 0x8040u /* MXCSR: flush to zero (bit 15), denormals are zero (bit 6) */
+static unsigned long float_control(void) { return _mm_getcsr(); }
+static void set_float_control(unsigned long value) { _mm_setcsr((unsigned)value); }
+#elif defined(__aarch64__)
+#define FLUSH_BITS (1ul << 24) /* FPCR.FZ: subnormal operands and results are zero */
+static unsigned long float_control(void)
+{
+    unsigned long value;
+    __asm__ __volatile__("mrs %0, fpcr" : "=r"(value));
+    return value;
+}
+static void set_float_control(unsigned long value) { __asm__ __volatile__("msr fpcr, %0" : : "r"(value)); }
+#else
+#define FLUSH_BITS 0u
+static unsigned long float_control(void) { return 0; }
+static void set_float_control(unsigned long value) { (void)value; }
+#endif
+
+const char *real_variable_name(int k) { return REAL_VARIABLES[k].name; }
+
+void flush_subnormals_begin(Instance *inst)
+{
+    inst->caller_float_control = float_control();
+    inst->flushing = 1;
+    if ((inst->caller_float_control & FLUSH_BITS) != FLUSH_BITS) set_float_control(inst->caller_float_control | FLUSH_BITS);
+}
+
+void flush_subnormals_end(Instance *inst)
+{
+    if (!inst->flushing) return;
+    inst->flushing = 0;
+    if ((inst->caller_float_control & FLUSH_BITS) != FLUSH_BITS) set_float_control(inst->caller_float_control);
+}
+
+void caller_float_control_begin(Instance *inst)
+{
+    if (inst->flushing && (inst->caller_float_control & FLUSH_BITS) != FLUSH_BITS)
+        set_float_control(inst->caller_float_control);
+}
+
+void caller_float_control_end(Instance *inst)
+{
+    if (inst->flushing && (inst->caller_float_control & FLUSH_BITS) != FLUSH_BITS)
+        set_float_control(inst->caller_float_control | FLUSH_BITS);
+}
+
 static void log_with(Instance *inst, Status status, const char *category, const char *fmt, va_list args)
 {
     char message[1024];
@@ -16,7 +64,9 @@ static void log_with(Instance *inst, Status status, const char *category, const 
     /* Importers differ in whether they treat the message as a printf format: a '%' is never safe. */
     for (p = message; *p; p++)
         if (*p == '%') *p = '?';
+    caller_float_control_begin(inst);
     inst->emit(inst, status, category, message);
+    caller_float_control_end(inst);
 }
 
 void log_error(Instance *inst, const char *fmt, ...)

@@ -5,20 +5,20 @@
  * on polynomials. */
 #include "integrators.h"
 
-const ButcherTableau TABLEAU_EULER = {"euler", 1, 1, {0}, {{0}}, {1}, {0}, 0, {0}};
+INTERNAL_DATA const ButcherTableau TABLEAU_EULER = {"euler", 1, 1, {0}, {{0}}, {1}, {0}, 0, {0}};
 
-const ButcherTableau TABLEAU_MIDPOINT = {"midpoint", 2, 2, {0, 0.5}, {{0}, {0.5}}, {0, 1}, {0}, 0, {0}};
+INTERNAL_DATA const ButcherTableau TABLEAU_MIDPOINT = {"midpoint", 2, 2, {0, 0.5}, {{0}, {0.5}}, {0, 1}, {0}, 0, {0}};
 
-const ButcherTableau TABLEAU_HEUN = {"heun", 2, 2, {0, 1}, {{0}, {1}}, {0.5, 0.5}, {0}, 0, {0}};
+INTERNAL_DATA const ButcherTableau TABLEAU_HEUN = {"heun", 2, 2, {0, 1}, {{0}, {1}}, {0.5, 0.5}, {0}, 0, {0}};
 
-const ButcherTableau TABLEAU_RK3 = {
+INTERNAL_DATA const ButcherTableau TABLEAU_RK3 = {
     "rk3", 3, 3, {0, 0.5, 1}, {{0}, {0.5}, {-1, 2}}, {1.0 / 6, 4.0 / 6, 1.0 / 6}, {0}, 0, {0}};
 
-const ButcherTableau TABLEAU_RK4 = {
+INTERNAL_DATA const ButcherTableau TABLEAU_RK4 = {
     "rk4", 4, 4, {0, 0.5, 0.5, 1}, {{0}, {0.5}, {0, 0.5}, {0, 0, 1}},
     {1.0 / 6, 1.0 / 3, 1.0 / 3, 1.0 / 6}, {0}, 0, {0}};
 
-const ButcherTableau TABLEAU_NYSTROM5 = {
+INTERNAL_DATA const ButcherTableau TABLEAU_NYSTROM5 = {
     "nystrom5", 6, 5, {0, 1.0 / 3, 2.0 / 5, 1, 2.0 / 3, 4.0 / 5},
     {{0},
      {1.0 / 3},
@@ -29,7 +29,7 @@ const ButcherTableau TABLEAU_NYSTROM5 = {
     {23.0 / 192, 0, 125.0 / 192, 0, -81.0 / 192, 125.0 / 192}, {0}, 0, {0}};
 
 /* Fehlberg 4(5): the 4th-order solution is propagated, the 5th-order one only estimates the error. */
-const ButcherTableau TABLEAU_RKF45 = {
+INTERNAL_DATA const ButcherTableau TABLEAU_RKF45 = {
     "rkf45", 6, 4, {0, 1.0 / 4, 3.0 / 8, 12.0 / 13, 1, 1.0 / 2},
     {{0},
      {1.0 / 4},
@@ -45,43 +45,43 @@ const ButcherTableau TABLEAU_RKF45 = {
  * symmetric. With r = sqrt(3): c = 1/2 -+ r/6, A = [[1/4, 1/4 - r/6], [1/4 + r/6, 1/4]], b = (1/2, 1/2),
  * and d = b^T A^-1 = (-r, r). */
 #define SQRT3 1.7320508075688772
-const ButcherTableau TABLEAU_IMPLICIT_MIDPOINT = {"implicit_midpoint", 1, 2, {0.5}, {{0.5}}, {1}, {0}, 1, {2}};
-const ButcherTableau TABLEAU_GAUSS_LEGENDRE4 = {
+INTERNAL_DATA const ButcherTableau TABLEAU_IMPLICIT_MIDPOINT = {"implicit_midpoint", 1, 2, {0.5}, {{0.5}}, {1}, {0}, 1, {2}};
+INTERNAL_DATA const ButcherTableau TABLEAU_GAUSS_LEGENDRE4 = {
     "gauss_legendre4", 2, 4, {0.5 - SQRT3 / 6, 0.5 + SQRT3 / 6},
     {{0.25, 0.25 - SQRT3 / 6}, {0.25 + SQRT3 / 6, 0.25}}, {0.5, 0.5}, {0}, 1, {-SQRT3, SQRT3}};
 
 /* The trapezoid rule (thesis 4.9), x1 = x0 + h/2 (f(t0, x0) + f(t1, x1)), as the 2-stage Lobatto IIIA
  * method: its first stage is explicit (f at the step's start, evaluated once) and its last row of A
  * is b, so that x1 = x0 + Z_2 (A is singular: no b^T A^-1). */
-const ButcherTableau TABLEAU_TRAPEZOID = {
+INTERNAL_DATA const ButcherTableau TABLEAU_TRAPEZOID = {
     "trapezoid", 2, 2, {0.0, 1.0}, {{0.0, 0.0}, {0.5, 0.5}}, {0.5, 0.5}, {0}, 1, {0.0, 1.0}};
 
-const char STORMER_VERLET_NAME[] = "stormer_verlet";
-const char TAYLOR_NAME[] = "taylor";
-const char GBS_NAME[] = "gbs";
+static const char STORMER_VERLET_NAME[] = "stormer_verlet";
+static const char TAYLOR_NAME[] = "taylor";
+static const char GBS_NAME[] = "gbs";
 
-const AdamsBashforth AB2 = {"ab2", 2, {3.0 / 2, -1.0 / 2}, &TABLEAU_RK4, 0, {0}, &TABLEAU_EULER};
-const AdamsBashforth AB3 = {"ab3", 3, {23.0 / 12, -16.0 / 12, 5.0 / 12}, &TABLEAU_RK4, 0, {0}, &TABLEAU_MIDPOINT};
-const AdamsBashforth AB4 = {"ab4", 4, {55.0 / 24, -59.0 / 24, 37.0 / 24, -9.0 / 24}, &TABLEAU_RK4, 0, {0}, &TABLEAU_RK3};
-const AdamsBashforth AB5 = {
+INTERNAL_DATA const AdamsBashforth AB2 = {"ab2", 2, {3.0 / 2, -1.0 / 2}, &TABLEAU_RK4, 0, {0}, &TABLEAU_EULER};
+INTERNAL_DATA const AdamsBashforth AB3 = {"ab3", 3, {23.0 / 12, -16.0 / 12, 5.0 / 12}, &TABLEAU_RK4, 0, {0}, &TABLEAU_MIDPOINT};
+INTERNAL_DATA const AdamsBashforth AB4 = {"ab4", 4, {55.0 / 24, -59.0 / 24, 37.0 / 24, -9.0 / 24}, &TABLEAU_RK4, 0, {0}, &TABLEAU_RK3};
+INTERNAL_DATA const AdamsBashforth AB5 = {
     "ab5", 5, {1901.0 / 720, -2774.0 / 720, 2616.0 / 720, -1274.0 / 720, 251.0 / 720}, &TABLEAU_RK4, 0, {0}, &TABLEAU_RK4};
 #define AB6_BETA {4277.0 / 1440, -7923.0 / 1440, 9982.0 / 1440, -7298.0 / 1440, 2877.0 / 1440, -475.0 / 1440}
-const AdamsBashforth AB6 = {"ab6", 6, AB6_BETA, &TABLEAU_NYSTROM5, 0, {0}, &TABLEAU_NYSTROM5};
+INTERNAL_DATA const AdamsBashforth AB6 = {"ab6", 6, AB6_BETA, &TABLEAU_NYSTROM5, 0, {0}, &TABLEAU_NYSTROM5};
 
 /* Adams-Bashforth-Moulton, PECE (thesis 4.2, predictor-corrector): the k-step Adams-Bashforth
  * predictor, f at the prediction, the (k-1)-step Adams-Moulton corrector of the same order k; the
  * next step's f(k) is taken at the corrected point. Two evaluations per step. abm5 starts with
  * nystrom5, not ab5's rk4: its error constant is 8 times smaller than ab5's, and an order-4 start
  * would dominate it over a short run. */
-const AdamsBashforth ABM2 = {"abm2", 2, {3.0 / 2, -1.0 / 2}, &TABLEAU_RK4, 1, {1.0 / 2, 1.0 / 2}, &TABLEAU_EULER};
-const AdamsBashforth ABM3 = {"abm3", 3, {23.0 / 12, -16.0 / 12, 5.0 / 12}, &TABLEAU_RK4, 1,
+INTERNAL_DATA const AdamsBashforth ABM2 = {"abm2", 2, {3.0 / 2, -1.0 / 2}, &TABLEAU_RK4, 1, {1.0 / 2, 1.0 / 2}, &TABLEAU_EULER};
+INTERNAL_DATA const AdamsBashforth ABM3 = {"abm3", 3, {23.0 / 12, -16.0 / 12, 5.0 / 12}, &TABLEAU_RK4, 1,
                              {5.0 / 12, 8.0 / 12, -1.0 / 12}, &TABLEAU_MIDPOINT};
-const AdamsBashforth ABM4 = {"abm4", 4, {55.0 / 24, -59.0 / 24, 37.0 / 24, -9.0 / 24}, &TABLEAU_RK4, 1,
+INTERNAL_DATA const AdamsBashforth ABM4 = {"abm4", 4, {55.0 / 24, -59.0 / 24, 37.0 / 24, -9.0 / 24}, &TABLEAU_RK4, 1,
                              {9.0 / 24, 19.0 / 24, -5.0 / 24, 1.0 / 24}, &TABLEAU_RK3};
-const AdamsBashforth ABM5 = {
+INTERNAL_DATA const AdamsBashforth ABM5 = {
     "abm5", 5, {1901.0 / 720, -2774.0 / 720, 2616.0 / 720, -1274.0 / 720, 251.0 / 720}, &TABLEAU_NYSTROM5, 1,
     {251.0 / 720, 646.0 / 720, -264.0 / 720, 106.0 / 720, -19.0 / 720}, &TABLEAU_RK4};
-const AdamsBashforth ABM6 = {"abm6", 6, AB6_BETA, &TABLEAU_NYSTROM5, 1,
+INTERNAL_DATA const AdamsBashforth ABM6 = {"abm6", 6, AB6_BETA, &TABLEAU_NYSTROM5, 1,
                              {475.0 / 1440, 1427.0 / 1440, -798.0 / 1440, 482.0 / 1440, -173.0 / 1440, 27.0 / 1440}, &TABLEAU_NYSTROM5};
 
 #if N_STATES > 0
@@ -180,11 +180,31 @@ ENGINE_INLINE void runge_kutta_step(const Evaluator *f, int mode, const ButcherT
     UNROLL for (i = 0; i < N_STATES; i++) x[i] += h * weighted_sum(tab->b, tab->stages, k, i);
 }
 
+/* A state refused: kept for the message of a step that stops on it. */
+static int remember_refused(RightHandSide *f, const double *x)
+{
+    memcpy(f->refused, x, sizeof f->refused);
+    f->refused_known = 1;
+    return 0;
+}
+
+/* model_state_ok, remembering a refused state. */
+ENGINE_INLINE int regular(RightHandSide *f, const double *x)
+{
+    return model_state_ok(f->model, x) || remember_refused(f, x);
+}
+
+/* f->acceptable, remembering a refused state. */
+ENGINE_INLINE int acceptable(RightHandSide *f, double t, const double *x)
+{
+    return f->acceptable(f->context, t, x) || remember_refused(f, x);
+}
+
 /* A checking pass's test of a substep's result: whether it is rejected (x is then back at saved). */
 ENGINE_INLINE int rejected(RightHandSide *f, double t, double *x, const double *saved)
 {
     f->checks++;
-    if (f->acceptable(f->context, t, x)) return 0;
+    if (acceptable(f, t, x)) return 0;
     memcpy(x, saved, STATE_SLOTS * sizeof(double));
     return 1;
 }
@@ -650,10 +670,10 @@ double integrate_taylor(RightHandSide *f, IntegratorMemory *memory, double *x, d
         if (!(h >= smallest_step(t))) break; /* underflowed, or the coefficients are not finite */
         step = h >= remaining ? remaining : h;
         taylor_sum(series, order, step, y);
-        if (!model_state_ok(f->model, y)) break;
+        if (!regular(f, y)) break;
         if (check_each) {
             f->checks++;
-            if (!f->acceptable(f->context, t + step, y)) break;
+            if (!acceptable(f, t + step, y)) break;
         }
         memcpy(x, y, sizeof y);
         t = step == remaining ? t_end : t + step;
@@ -946,10 +966,10 @@ double integrate_adaptive(RightHandSide *f, IntegratorMemory *memory, double *x,
         runge_kutta_step(&e, mode, &TABLEAU_RKF45, t, step, y, f0, err);
         f->evaluations += (uint64_t)(TABLEAU_RKF45.stages - 1);
         norm = scaled_error(x, err, NULL, tol);
-        accept = norm <= 1.0 && model_state_ok(f->model, y);
+        accept = norm <= 1.0 && regular(f, y);
         if (accept && check_each) {
             f->checks++;
-            accept = f->acceptable(f->context, t + step, y);
+            accept = acceptable(f, t + step, y);
         }
         /* Order-4 error estimate: the step scales with 0.8 norm^(-1/5), kept within [0.2, 5]; the safety
          * factor 0.8 (rather than 0.9) halves the rejections on the pendulums at the same total cost. */
@@ -1030,8 +1050,8 @@ double integrate_extrapolation(RightHandSide *f, IntegratorMemory *memory, doubl
             previous = err;
         }
         if (k > top) k = top;
-        if (accepted && (!model_state_ok(f->model, table[k - 1]) ||
-                         (check_each && (f->checks++, !f->acceptable(f->context, t + step, table[k - 1]))))) {
+        if (accepted && (!regular(f, table[k - 1]) ||
+                         (check_each && (f->checks++, !acceptable(f, t + step, table[k - 1]))))) {
             accepted = 0;
             failed = 1;
         }

@@ -42,7 +42,7 @@ typedef struct {
     const ButcherTableau *restarter;
 } AdamsBashforth;
 
-extern INTERNAL const ButcherTableau TABLEAU_EULER, TABLEAU_MIDPOINT, TABLEAU_HEUN, TABLEAU_RK3, TABLEAU_RK4,
+INTERNAL_DATA_DECLARATION const ButcherTableau TABLEAU_EULER, TABLEAU_MIDPOINT, TABLEAU_HEUN, TABLEAU_RK3, TABLEAU_RK4,
     TABLEAU_NYSTROM5, TABLEAU_RKF45, TABLEAU_IMPLICIT_MIDPOINT, TABLEAU_GAUSS_LEGENDRE4, TABLEAU_TRAPEZOID;
 
 /* Newton's iteration of the implicit methods: at most this many iterations per step. With c_k the
@@ -56,12 +56,11 @@ extern INTERNAL const ButcherTableau TABLEAU_EULER, TABLEAU_MIDPOINT, TABLEAU_HE
 #define NEWTON_TOLERANCE 1e-15
 #define NEWTON_PLATEAU 1e-10
 #define IMPLICIT_MAX_STAGES 2
-extern INTERNAL const char STORMER_VERLET_NAME[], TAYLOR_NAME[], GBS_NAME[];
 
 /* Substeps between two checks of the state in a fixed-step pass: a failure costs at most this many
  * substeps redone, and the checks cost one evaluation per block. */
 #define CHECK_BLOCK 64
-extern INTERNAL const AdamsBashforth AB2, AB3, AB4, AB5, AB6, ABM2, ABM3, ABM4, ABM5, ABM6;
+INTERNAL_DATA_DECLARATION const AdamsBashforth AB2, AB3, AB4, AB5, AB6, ABM2, ABM3, ABM4, ABM5, ABM6;
 
 /* A Jacobian kept with the point it was taken at: the implicit methods' trial steps from one point (locating an event
  * inside a step) take it again instead of computing it again. Valid while the constraints acting stay the same. */
@@ -102,8 +101,12 @@ typedef struct {
      * called only in checking passes, never in the hot loop. */
     int (*acceptable)(void *context, double t, const double *x);
     void *context;
+    /* The last state refused as non-finite or singular, for the message of a step that stops on it. */
+    double refused[STATE_SLOTS];
+    int refused_known;
 } RightHandSide;
 
+#if N_STATES > 0 /* the engines: a model without states has none */
 /* Fixed-step integration with solver (a SOLVER_* value that is not rkf45): substeps first ...
  * first + n - 1 of hs from t0, substep i starting at t0 + i hs. With check_each, stops before the
  * first substep whose result is not acceptable and leaves x, memory at the last good substep.
@@ -159,5 +162,6 @@ INTERNAL const char *solver_name(int solver);
  * counted as one evaluation (f at the step's start) and one per state (its columns); for the Taylor
  * method taylor_charge(f->taylor_order) per step; for gbs with its fixed step 1 + k^2 (k = f->gbs_columns). */
 INTERNAL double evaluations_needed(int solver, int history, double substeps, const RightHandSide *f);
+#endif
 
 #endif

@@ -100,7 +100,9 @@ static void report_internal_step(Instance *inst, double t, const double *real)
     inst->s.time = t;
     inst->outputs_valid = 1;
     inst->s.machine_state = MS_INTERMEDIATE;
+    caller_float_control_begin(inst);
     inst->report_step(inst, t);
+    caller_float_control_end(inst);
     memcpy(inst->s.real, before, sizeof before);
     inst->s.time = time;
     inst->s.machine_state = machine_state;
@@ -136,9 +138,28 @@ static Status finish_with(Instance *inst, double t, double H, const double *chec
     return status;
 }
 
-static Status fail(Instance *inst, const char *function, double t, double t_good, const char *method, double h,
-                   int unconverged)
+/* Why a state was refused, for a message: the requirement it breaks or the variable it makes non-finite
+ * ("" when neither is found). */
+static void refusal_reason(const Instance *inst, double t, const double *refused, char *text, size_t size)
 {
+    char reason[1024];
+    int k;
+    text[0] = '\0';
+    if (!refused) return;
+    k = first_non_finite(refused, N_STATES);
+    if (k >= 0)
+        snprintf(text, size, " (%s would not be finite)", real_variable_name(k));
+    else if (model_explain_singularity(&inst->constants, t, refused, reason, sizeof reason))
+        snprintf(text, size, " (%s)", reason);
+    else if ((k = first_non_finite_at(inst, t, refused)) >= 0)
+        snprintf(text, size, " (%s would not be finite)", real_variable_name(k));
+}
+
+static Status fail(Instance *inst, const char *function, double t, double t_good, const char *method, double h,
+                   int unconverged, const double *refused)
+{
+    char reason[1100];
+    refusal_reason(inst, t_good, refused, reason, sizeof reason);
     finish(inst, t, t_good - t, t_good);
     if (unconverged)
         log_discard(inst, "%s: %s with h = %g: Newton's iteration did not converge (%d iterations at most, scaled "
@@ -147,8 +168,8 @@ static Status fail(Instance *inst, const char *function, double t, double t_good
                     t_good);
     else
         log_discard(inst, "%s: %s with h = %g: the state would become non-finite or singular in the substep "
-                    "after t = %.17g; stopped there (last successful time %.17g)", function, method, h, t_good,
-                    t_good);
+                    "after t = %.17g%s; stopped there (last successful time %.17g)", function, method, h, t_good,
+                    reason, t_good);
     return STATUS_DISCARD;
 }
 
@@ -165,6 +186,8 @@ static Status stopped_short(Instance *inst, const char *function, const RightHan
 {
     const char *method = solver_name(solver);
     const double tol = inst->s.real[VR_tol];
+    char reason[1100];
+    refusal_reason(inst, reached, f->refused_known ? f->refused : NULL, reason, sizeof reason);
     finish(inst, t, reached - t, reached);
     if (f->out_of_budget && !adaptive_method(solver, tol)) /* a fixed-step method's checks for contacts inside */
         log_discard(inst, "%s: %s at h = %g used its %.0f right-hand-side evaluations allowed per call, with the "
@@ -176,16 +199,21 @@ static Status stopped_short(Instance *inst, const char *function, const RightHan
                     "allowed per call at t = %.17g; stopped at the last successful time %.17g (take shorter "
                     "communication steps or a larger tol)", function, method, tol, MAX_EVALUATIONS_PER_CALL,
                     reached, reached);
+    else if (f->unconverged)
+        log_discard(inst, "%s: %s with h = %g: Newton's iteration did not converge (%d iterations at most, scaled "
+                    "correction below %g) in a trial step locating an event after t = %.17g; stopped at the last "
+                    "successful time %.17g: take a smaller h", function, method, inst->s.real[VR_h], NEWTON_MAX_ITERATIONS,
+                    NEWTON_TOLERANCE, reached, reached);
     else if (solver == SOLVER_TAYLOR)
         log_discard(inst, "%s: taylor of order %d with tol = %g: the step its coefficients allow "
-                    "underflowed at t = %.17g (tol is out of reach at this order in double precision, or "
+                    "underflowed at t = %.17g%s (tol is out of reach at this order in double precision, or "
                     "the state is non-finite or singular there: take a larger tol or a higher "
                     "taylor_order); stopped at the last successful time %.17g", function,
-                    inst->s.integer[INT_taylor_order], tol, reached, reached);
+                    inst->s.integer[INT_taylor_order], tol, reached, reason, reached);
     else
-        log_discard(inst, "%s: %s with tol = %g: the step size underflowed at t = %.17g (the "
+        log_discard(inst, "%s: %s with tol = %g: the step size underflowed at t = %.17g%s (the "
                     "state is non-finite, singular or too stiff there); stopped at the last successful "
-                    "time %.17g", function, method, tol, reached, reached);
+                    "time %.17g", function, method, tol, reached, reason, reached);
     return STATUS_DISCARD;
 }
 
@@ -349,7 +377,7 @@ static void trial_step(EventStepper *e, const IntegratorMemory *memory, const do
         step_from_slope(e->f, e->solver, &scratch, x, t, theta, start_slope(e));
     } else {
         scratch.ab_count = 0;
-        integrate_fixed(e->f, e->solver, &scratch, x, t, theta, 0, 1, 0);
+        if (integrate_fixed(e->f, e->solver, &scratch, x, t, theta, 0, 1, 0) < 1) e->short_of = 1; /* Newton failed */
     }
 }
 
@@ -564,6 +592,10 @@ static double locate_event(EventStepper *e, const IntegratorMemory *memory, cons
                 next += fmax(fabs(zt[k] / slope), 4.0 * DBL_EPSILON * (fabs(t) + span));
             if (!(next > lo && next < hi) || !isfinite(next)) next = hi - zhi * (hi - lo) / (zhi - zlo);
             if (!(next > lo && next < hi)) next = 0.5 * (lo + hi);
+            if (e->adaptive && t + next <= t + lo) { /* far from t = 0 a correction can be below the time's rounding */
+                next = nextafter(t + lo, INFINITY) - t;
+                if (!(t + next < t + hi)) break;
+            }
             theta = next;
         }
     }
@@ -670,7 +702,10 @@ static Status step_with_events(Instance *inst, const char *function, RightHandSi
     int64_t n, i;
     int reuse, rates_known = 0;
     KeptJacobian kept; /* the implicit methods' Jacobian at a step's start, for the trial steps from there */
-    double hs, reached, rates[N_CONSTRAINTS]; /* the gaps' rates where the last step ended (adaptive methods) */
+    double hs, reached, rates[N_CONSTRAINTS] = {0.0}; /* the gaps' rates where the last step ended (adaptive methods) */
+    double x_call[STATE_SLOTS]; /* the call's start, with m_call and active_call */
+    const IntegratorMemory m_call = *memory;
+    const int32_t active_call = s->active_constraints;
     e.inst = inst;
     e.f = f;
     e.solver = solver;
@@ -680,6 +715,7 @@ static Status step_with_events(Instance *inst, const char *function, RightHandSi
     e.history = NULL;
     kept.valid = 0;
     f->kept_jacobian = &kept;
+    memcpy(x_call, x, sizeof x_call);
     e.adaptive = adaptive_method(solver, e.tol);
     {
         char message[512];
@@ -728,14 +764,17 @@ static Status step_with_events(Instance *inst, const char *function, RightHandSi
             }
         } else if (steps_from_slope(solver)) { /* its f at the start stays for the event's trial steps */
             step_from_slope(f, solver, memory, x, ta, hs, start_slope(&e));
-        } else {
-            integrate_fixed(f, solver, memory, x, t, hs, i, 1, 0);
+        } else if (integrate_fixed(f, solver, memory, x, t, hs, i, 1, 0) < 1) { /* Newton's iteration failed */
+            memcpy(x, x0, sizeof x0);
+            *memory = m0;
+            count_work(memory, f);
+            return fail(inst, function, t, ta, solver_name(solver), e.h, f->unconverged, NULL);
         }
         if (!model_state_ok(c, x)) {
             memcpy(x, x0, sizeof x0);
             *memory = m0;
             count_work(memory, f);
-            return fail(inst, function, t, ta, solver_name(solver), e.h, f->unconverged);
+            return fail(inst, function, t, ta, solver_name(solver), e.h, f->unconverged, f->refused_known ? f->refused : NULL);
         }
         indicators_at(&e, tb, x, z1);
         step_end = tb;
@@ -819,7 +858,7 @@ static Status step_with_events(Instance *inst, const char *function, RightHandSi
             if (inst->return_at_events && ta > t && ta < t_end && memory->n_events > events_before) { /* FMI 3.0 */
                 count_work(memory, f);
                 f->checks++;
-                if (!evaluate_at(inst, ta, x, checked)) return fail(inst, function, t, ta, solver_name(solver), e.h, 0);
+                if (!evaluate_at(inst, ta, x, checked)) return fail(inst, function, t, ta, solver_name(solver), e.h, 0, x);
                 return finish_with(inst, t, ta - t, checked, f->inputs_vary);
             }
             any = 0;
@@ -840,7 +879,7 @@ static Status step_with_events(Instance *inst, const char *function, RightHandSi
         if (!leave_boundary(c, s->active_constraints, e.departing, tb, x) ||
             !project_constraints(c, s->active_constraints, tb, x)) {
             count_work(memory, f);
-            return fail(inst, function, t, ta, solver_name(solver), e.h, 0);
+            return fail(inst, function, t, ta, solver_name(solver), e.h, 0, NULL);
         }
         /* the next step starts with the indicators this one ended with, unless a projection moved the state */
         reuse = !e.departing && !rigid_acting(c, s->active_constraints);
@@ -849,7 +888,14 @@ static Status step_with_events(Instance *inst, const char *function, RightHandSi
     }
     count_work(memory, f);
     f->checks++;
-    if (!evaluate_at(inst, t_end, x, checked)) return fail(inst, function, t, t_end, solver_name(solver), e.h, 0);
+    if (!evaluate_at(inst, t_end, x, checked)) { /* the call's start is its last good point: back there */
+        double refused[STATE_SLOTS];
+        memcpy(refused, x, sizeof refused);
+        memcpy(x, x_call, sizeof x_call);
+        *memory = m_call;
+        s->active_constraints = active_call;
+        return fail(inst, function, t, t, solver_name(solver), e.h, 0, refused);
+    }
     return finish_with(inst, t, H, checked, f->inputs_vary);
 }
 #endif
@@ -906,20 +952,10 @@ Status step_to(Instance *inst, const char *function, double t, double H)
     f.acceptable = state_acceptable;
     f.jacobian = jacobian_at;
     f.kept_jacobian = NULL;
+    f.refused_known = 0;
     f.context = inst;
 
-    {
-        double u_mid[INPUT_SLOTS], closed[STATE_SLOTS];
-        for (i = 0; i < N_INPUTS; i++) u_mid[i] = f.u0[i] + 0.5 * H * f.du[i];
-        memcpy(closed, x, sizeof closed);
-        if (model_closed_form_step(&inst->constants, H, u_mid, closed)) {
-            if (!evaluate_at(inst, t + H, closed, checked)) return fail(inst, function, t, t, "closed form", H, 0);
-            memcpy(x, closed, sizeof closed);
-            memory->n_steps++;
-            return finish_with(inst, t, H, checked, f.inputs_vary);
-        }
-    }
-
+    /* the method's settings are checked also where a closed form (model = linear) takes the step */
     if (solver == SOLVER_RKF45 && !(s->real[VR_tol] > 0.0)) {
         log_error(inst, "%s: rkf45 needs a tolerance: variable tol = 0 is out of its range (0, 1] for rkf45 (tol = 0 "
                   "means a fixed step only for taylor and gbs)", function);
@@ -930,6 +966,18 @@ Status step_to(Instance *inst, const char *function, double t, double H)
                   "first); allowed for gbs: 0 (fixed step h) or [%g, 1]", function, s->real[VR_tol], GBS_SMALLEST_TOL);
         return STATUS_ERROR;
     }
+    {
+        double u_mid[INPUT_SLOTS], closed[STATE_SLOTS];
+        for (i = 0; i < N_INPUTS; i++) u_mid[i] = f.u0[i] + 0.5 * H * f.du[i];
+        memcpy(closed, x, sizeof closed);
+        if (model_closed_form_step(&inst->constants, H, u_mid, closed)) {
+            if (!evaluate_at(inst, t + H, closed, checked)) return fail(inst, function, t, t, "closed form", H, 0, closed);
+            memcpy(x, closed, sizeof closed);
+            memory->n_steps++;
+            return finish_with(inst, t, H, checked, f.inputs_vary);
+        }
+    }
+
 #if N_CONSTRAINTS > 0
     return step_with_events(inst, function, &f, solver, t, H);
 #endif
@@ -1006,7 +1054,7 @@ Status step_to(Instance *inst, const char *function, double t, double H)
             count_work(memory, &f);
             memory->ab_count = memory->ab_restarted = 0;
             return fail(inst, function, t, first + done == n ? t + H : t + (double)(first + done) * hs, method, h,
-                        f.unconverged);
+                        f.unconverged, f.refused_known ? f.refused : NULL);
         }
         count_work(memory, &f);
         return finish_with(inst, t, H, checked, f.inputs_vary);

@@ -220,7 +220,7 @@ class ContactSteps:
         """A step that began apart, rolled back and redone half way to the onset where it overshot one: the
         step taken and whether it ends the interval, or (None, the discard)."""
         numbers = self._numbers()
-        start = Snapshot(self.units, self.stepper)
+        start = Snapshot(self.units, self.stepper).take()
         try:
             for landing in range(MAX_LANDINGS + 1):
                 outcome = self.stepper.step(t, step)

@@ -173,6 +173,10 @@ class Snapshot:
                 unit.release(state)
 
     def __enter__(self) -> "Snapshot":
+        return self.take()
+
+    def take(self) -> "Snapshot":
+        """The states and values now; the caller releases them (a `with` block does)."""
         self.kept = self.stepper.bookkeeping() if self.stepper else None
         try:
             with held():  # every state saved is in `states`, for release() to release

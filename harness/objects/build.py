@@ -9,6 +9,7 @@ when it is complete.
 from __future__ import annotations
 
 import os
+import re
 import shlex
 import shutil
 import sys
@@ -42,7 +43,20 @@ class DerivedFmu:
 
 # What each FMI version's FMU carries besides the model: its API layer (source, header) and platform folder.
 LAYERS = {2: ("fmi2_functions.c", "fmi2_api.h", "linux64"), 3: ("fmi3_functions.c", "fmi3_api.h", "x86_64-linux")}
-CORE_SOURCES = SOURCE_FILES[1:-1]  # between the FMI 2.0 layer and physics.c
+
+
+def single_unit(version: int) -> str:
+    """The translation unit an importer compiles (SOURCE_FILES for FMI 2.0)."""
+    return f"fmu_fmi{version}.c"
+
+
+def unit_sources(version: int) -> tuple[str, ...]:
+    """The C files the single unit includes: the one list of what an FMU compiles."""
+    text = (FRAMEWORK / single_unit(version)).read_text()
+    return tuple(re.findall(r'^#include "([^"]+[.]c)"', text, flags=re.M))
+
+
+assert SOURCE_FILES == (single_unit(2),)
 
 
 def derive_fmu(object_file: str | Path, out: str | Path, progress: Callable[[str], None] = no_progress) -> DerivedFmu:
@@ -68,7 +82,7 @@ def derive_fmu(object_file: str | Path, out: str | Path, progress: Callable[[str
         folder = generated.folder
         result = run_program([sys.executable, str(PROJECT_ROOT / "tools" / "fmu_codegen.py"), "--out",
                               str(work / "generated"), "--models", str(PROJECT_ROOT / "fmus" / "models"),
-                              "--sources", *SOURCE_FILES, "--xml", str(folder / "modelDescription.xml")])
+                              "--sources", *unit_sources(2), "--xml", str(folder / "modelDescription.xml")])
         if result.returncode != 0:
             raise HarnessError(f"{object_file}: the generated model description was refused: "
                                f"{result.stderr.strip().splitlines()[-1]}")
@@ -94,8 +108,8 @@ def _package(version: int, compiler: list[str], object_file, identifier: str, fo
     binaries = fmu / "binaries" / platform
     for directory in (sources, binaries, fmu / "documentation"):
         directory.mkdir(parents=True)
-    compiled = (layer_source, *CORE_SOURCES, "physics.c")
-    for name in (layer_source, *CORE_SOURCES, layer_header, *FRAMEWORK_HEADERS[1:]):
+    compiled = unit_sources(version)
+    for name in (single_unit(version), *(n for n in compiled if n != "physics.c"), layer_header, *FRAMEWORK_HEADERS[1:]):
         shutil.copy(FRAMEWORK / name, sources / name)
     for name in ("physics.c", "physics.h", "model_description.h"):
         shutil.copy(folder / name, sources / name)
@@ -103,7 +117,7 @@ def _package(version: int, compiler: list[str], object_file, identifier: str, fo
     description = folder / "modelDescription.xml" if version == 2 else folder / "fmi3" / "modelDescription.xml"
     shutil.copy(description, fmu / "modelDescription.xml")
     if version == 3:
-        (sources / "buildDescription.xml").write_text(build_description(identifier, compiled))
+        (sources / "buildDescription.xml").write_text(build_description(identifier, [single_unit(version)]))
     shutil.copy(folder / "documentation" / "index.html", fmu / "documentation" / "index.html")
     library = binaries / f"{identifier}.so"
     result = run_program([*compiler, *C_FLAGS, "-shared", f"-I{sources}", "-o", str(library),

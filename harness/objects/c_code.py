@@ -21,7 +21,7 @@ import sympy as sp
 from harness.fmi.methods import FREE_MOTION_ONLY, GBS_COLUMNS, GBS_SMALLEST_TOL, TAYLOR_ORDERS
 from harness.objects.c_expression import c_expr
 from harness.objects.derivation import Derivation, constraints_beyond_free_motion, total_derivative
-from harness.objects.object_file import FRAMEWORK_PARAMETERS, MAX_EVALUATIONS_PER_CALL
+from harness.objects.object_file import ANGLE_LIMIT, FRAMEWORK_PARAMETERS, MAX_EVALUATIONS_PER_CALL, REQUIRE_MARGIN
 from harness.objects.taylor_code import TaylorUnavailable, taylor_code
 
 
@@ -233,10 +233,13 @@ def generate_c(derivation: Derivation) -> GeneratedC:
                     f"    {law}.damping = {c_expr(names.to_c(constraint.damping))};"]
     prepare += [f"    {c_expr(symbol)} = {c_expr(value)};" for symbol, value in constants.definitions]
     prepare += constant_factor_lines
+    diagonals = [_diagonal_entry(derivation, spec, names, j) for j in range(n)]
     for j, pivot in constant_pivots:
+        text, values = diagonals[j]
         prepare += [f"    if (!({pivot} > 0.0)) {{",
                     f'        snprintf(message, size, "the mass matrix d2T/dv2 is not positive definite for these '
-                    f'parameters (pivot {j + 1} of its factorization = %g)", {pivot});',
+                    f'parameters (pivot {j + 1} of its factorization, of {spec.coordinates[j].velocity}, = %g; {text})", '
+                    f'{pivot}{values});',
                     "        return 1;", "    }"]
     if has_linear:
         lin = derivation.linear
@@ -258,19 +261,32 @@ def generate_c(derivation: Derivation) -> GeneratedC:
     # ---- state check and explanation
     checks = " && ".join(f"isfinite(x[{i}])" for i in range(2 * n))
     ok_body = [f"    if (!({checks})) return 0;"]
+    angles = [(j, c.name) for j, c in enumerate(spec.coordinates) if c.unit == "rad"]
+    for j, _ in angles:
+        ok_body.append(f"    if (!(fabs(x[{j}]) <= {ANGLE_LIMIT!r})) return 0;")
     for requirement in requirements:
-        ok_body.append(f"    if (!({c_expr(requirement)} > 0.0)) return 0;")
+        ok_body.append(f"    if (!({_required(requirement)})) return 0;")
     ok_body.append("    return 1;")
     ok_body = _with_locals(state_locals, ok_body)
 
     explain = []
+    for j, name in angles:
+        explain += [f"    if (fabs(x[{j}]) > {ANGLE_LIMIT!r}) {{",
+                    f'        snprintf(message, size, "{name} = %g rad is beyond +-{ANGLE_LIMIT:.10g} rad, where an angle has '
+                    f'no precision left for the motion (one ulp is %g rad there)", x[{j}], '
+                    f'nextafter(fabs(x[{j}]), INFINITY) - fabs(x[{j}]));', "        return 1;", "    }"]
     for k, (requirement, text) in enumerate(zip(requirements, spec.require)):
-        explain += [f"    if (!({c_expr(requirement)} > 0.0)) {{",
-                    f'        snprintf(message, size, "{_c_string(str(text))} = %g must stay > 0 (require[{k}] of the '
-                    f'object file)", (double)({c_expr(requirement)}));', "        return 1;", "    }"]
+        size = _terms_size(requirement)
+        terms = " + ".join(f"|{term}|" for term in sp.sympify(text).args) if size is not None else ""
+        bound = (f" above %g, {REQUIRE_MARGIN:g} of {_c_string(terms)} (closer to 0 it is the terms' rounding;"
+                 if size is not None else " > 0 (")
+        bound_value = f", (double)({REQUIRE_MARGIN!r} * ({c_expr(size)}))" if size is not None else ""
+        explain += [f"    if (!({_required(requirement)})) {{",
+                    f'        snprintf(message, size, "{_c_string(str(text))} = %g must stay{bound} require[{k}] of the '
+                    f'object file)", (double)({c_expr(requirement)}){bound_value});', "        return 1;", "    }"]
     explain_mass, explain_reduced, _ = _cse_lines(mass, "w")
     explain += explain_mass
-    explain += _pivot_report(n, dict(zip(upper, explain_reduced)))
+    explain += _pivot_report(n, dict(zip(upper, explain_reduced)), spec, diagonals)
     explain.append("    return 0;")
     explain = _with_locals(state_locals, explain)
 
@@ -486,6 +502,19 @@ def _tidy(expr, states: set[sp.Symbol], velocities: list[sp.Symbol]):
     return sp.collect(numerator, velocities + atoms) / by_states
 
 
+def _terms_size(requirement: sp.Expr) -> sp.Expr | None:
+    """|a| + |b| + ... of a requirement that is a sum a + b + ... (None otherwise: no cancellation)."""
+    return sp.Add(*(sp.Abs(term) for term in requirement.args)) if isinstance(requirement, sp.Add) else None
+
+
+def _required(requirement: sp.Expr) -> str:
+    """The C condition of a requirement: positive, and a sum above REQUIRE_MARGIN of its terms' sizes."""
+    size = _terms_size(requirement)
+    if size is None:
+        return f"{c_expr(requirement)} > 0.0"
+    return f"{c_expr(requirement)} > {REQUIRE_MARGIN!r} * ({c_expr(size)})"
+
+
 def _positive_by_declaration(expr, spec) -> bool:
     """Whether the object file guarantees expr > 0 wherever its requirements hold: a positive number
     times parameters with a positive lower bound and required expressions, or their powers."""
@@ -580,18 +609,32 @@ def _ldl_solve(n: int, mass: dict[tuple[int, int], sp.Expr]):
     return runtime, constant_pivots, prepare, sorted(constant_names)
 
 
-def _pivot_report(n: int, mass: dict[tuple[int, int], sp.Expr]) -> list[str]:
-    """Cold-path LDL^T pivots for the explanation of a singular state."""
+def _diagonal_entry(derivation: Derivation, spec, names, j: int) -> tuple[str, str]:
+    """A diagonal entry of the mass matrix for a message: its expression and the values of the
+    parameters and coordinates in it (format text, C arguments), which name what makes a pivot vanish."""
+    entry = sp.factor(sp.trigsimp(derivation.M[j, j]))  # m1*(l1**2 sin**2 + l1**2 cos**2) reads l1**2*m1
+    symbols = sorted((s for s in entry.free_symbols if s in names.mapping), key=lambda s: s.name)
+    values = " with " + ", ".join(f"{s.name} = %g" for s in symbols) if symbols else ""
+    arguments = "".join(f", (double)({c_expr(names.mapping[s])})" for s in symbols)
+    return (_c_string(f"its diagonal entry {entry}") + f" = %g{values}",
+            f", (double)({c_expr(names.to_c(entry))}){arguments}")
+
+
+def _pivot_report(n: int, mass: dict[tuple[int, int], sp.Expr], spec, diagonals: list[tuple[str, str]]) -> list[str]:
+    """Cold-path LDL^T pivots for the explanation of a singular state, naming the velocity of the pivot
+    that vanishes and the parameters and coordinates of its diagonal entry."""
     lines = [f"    double M[{n}][{n}], D[{n}], L[{n}][{n}];", "    int i, j, k;"]
     for (i, j), value in mass.items():
         lines.append(f"    M[{i}][{j}] = {c_expr(value)};" if i == j else f"    M[{i}][{j}] = M[{j}][{i}] = {c_expr(value)};")
     lines += [f"    for (j = 0; j < {n}; j++) {{",
               "        D[j] = M[j][j];",
               "        for (k = 0; k < j; k++) D[j] -= L[j][k] * L[j][k] * D[k];",
-              "        if (!(D[j] > 0.0)) {",
-              '            snprintf(message, size, "the mass matrix d2T/dv2 is not positive definite here (pivot %d '
-              'of its factorization = %g)", j + 1, D[j]);',
-              "            return 1;", "        }",
+              "        if (!(D[j] > 0.0)) {"]
+    for j, (text, values) in enumerate(diagonals):
+        lines += [f"            {'if' if j == 0 else 'else if'} (j == {j})",
+                  '                snprintf(message, size, "the mass matrix d2T/dv2 is not positive definite here (pivot '
+                  f'{j + 1} of its factorization, of {spec.coordinates[j].velocity}, = %g; {text})", D[j]{values});']
+    lines += ["            return 1;", "        }",
               f"        for (i = j + 1; i < {n}; i++) {{",
               "            L[i][j] = M[i][j];",
               "            for (k = 0; k < j; k++) L[i][j] -= L[i][k] * L[j][k] * D[k];",

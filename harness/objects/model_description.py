@@ -21,8 +21,8 @@ from harness.objects.dependencies import dependencies
 from harness.objects.derivation import Derivation
 from harness.objects.object_file import EVENT_COUNTER, FRAMEWORK_PARAMETERS, ObjectFileError
 
-SOURCE_FILES = ("fmi2_functions.c", "core.c", "stepper.c", "instance.c", "integrators.c", "linear_model.c", "constraints.c",
-                "physics.c")
+# What an importer compiles (SourceFiles): one translation unit per FMI version, which includes the rest.
+SOURCE_FILES = ("fmu_fmi2.c",)
 BASE = {"m": {"m": 1}, "kg": {"kg": 1}, "s": {"s": 1}, "rad": {"rad": 1}, "N": {"kg": 1, "m": 1, "s": -2},
         "J": {"kg": 1, "m": 2, "s": -2}, "W": {"kg": 1, "m": 2, "s": -3}, "Hz": {"s": -1}, "1": {},
         "deg": {"rad": 1}, "A": {"A": 1}, "K": {"K": 1}}

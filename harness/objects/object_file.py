@@ -25,6 +25,12 @@ from harness.fmi.methods import COUNTER_NAMES, GBS_SMALLEST_TOL
 # communication step that needs more (fmi2Error), rkf45 and gbs stop where they run out (fmi2Discard). About
 # 0.1 s for the simple pendulum, 4 s for the five-link chain.
 MAX_EVALUATIONS_PER_CALL = 10_000_000
+# A requirement that is a sum (l0 + eps) must stay above this fraction of the sum of its terms' sizes:
+# closer to 0 its value is the rounding of the terms, and the configuration is as singular as at 0.
+REQUIRE_MARGIN = 1e-9
+# Beyond this many radians an angle coordinate has no precision left for the motion (one ulp is 2.4e-7 rad
+# at 2^30): its start is refused, and a step that takes it there is discarded.
+ANGLE_LIMIT = 2.0 ** 30
 FRAMEWORK_PARAMETERS = {
     "d": dict(start=0.0, unit="1/s", min=0.0, description="damping: each generalized acceleration gets -d times "
                                                             "its velocity"),
@@ -64,7 +70,8 @@ FORMAT = {
         "rest": "the rest state of the linear model: a coordinate's value, an expression in the parameters "
                 "(default 0)",
         "require": "list of expressions in parameters, coordinates and t that must stay positive; where one is "
-                   "not, the state is singular",
+                   f"not, the state is singular (a sum must stay above {REQUIRE_MARGIN:g} of the sum of its terms' "
+                   "sizes, below which it is rounding)",
         "constraints": "table of constraints, each `NAME = { gap = \"...\", ... }` (keys below): contacts, strings, "
                        "walls and rods, with outputs `NAME_gap`, `NAME_force` and the counter `n_events`",
         "outputs": "table of further outputs, each `NAME = { value = \"...\", unit = \"N\" }` (keys below): what "
