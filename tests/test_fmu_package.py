@@ -199,7 +199,7 @@ def test_codegen_accepts_the_repository_xml(tmp_path):
 
 @pytest.mark.parametrize("old,new,message", [
     ('name="omega" valueReference="1"', 'name="omega" valueReference="7"', "value references must be"),
-    ('<File name="physics.c"/>', '', "SourceFiles"),
+    ('<File name="fmu_fmi2.c"/>', '<File name="core.c"/>', "SourceFiles"),
     ('name="der(omega)"', 'name="der(phi)"', "is the derivative of omega"),
     ('<Real unit="m" start="1" min="1e-09"/>', '<Real unit="m" start="-1" min="1e-09"/>', "below its min"),
 ])
