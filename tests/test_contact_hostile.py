@@ -171,6 +171,34 @@ def test_an_implicit_method_never_reports_a_step_it_did_not_take(instance, solve
             assert after != before, (t, before, after)
 
 
+# ---------------------------------------------------------------- extreme stiffness with fixed steps
+
+def _real(instance: FmuInstance, name: str) -> tuple[int, float]:
+    """fmi2GetReal of one variable: (status, value), without raising on a discard."""
+    value = (ctypes.c_double * 1)()
+    reference = (ctypes.c_uint * 1)(instance.reference(name))
+    return instance.call("fmi2GetReal", reference, ctypes.c_size_t(1), value), value[0]
+
+
+def test_a_discarded_step_with_events_leaves_a_state_with_finite_outputs(instance):
+    """k = 1e300 (the range is [1e-9, inf)): rk4 at h = 10 us steps into the contact and its state overflows
+    the energy. Found: fmi2DoStep returned fmi2Discard "the state would become non-finite or singular in the
+    substep after t = 0.28; stopped there (last successful time 0.28)", i.e. at the step's end, and kept the
+    state it had reached there: omega2 = -3.6e293 rad/s handed out with fmi2OK, E and E_kin refused as not
+    finite. Expected: a last successful time whose state has finite outputs, and that state handed out. Now the call
+    goes back to its start where the state it stopped in (at the step's end, or where an event could not be
+    resolved) overflows its outputs."""
+    cradle = instance("HertzCradle")
+    cradle.initialize(solver=_solver("rk4"), h=1e-5, tol=0.0, k=1e300)
+    assert cradle.do_step(0.0, 0.279) == OK
+    status = cradle.do_step(0.279, 0.001)
+    assert status == DISCARD
+    reached = cradle.last_successful_time()
+    assert reached < 0.28 - 1e-12, (reached, cradle.last_message())
+    status, energy = _real(cradle, "E")
+    assert status == OK and math.isfinite(energy)
+
+
 # ---------------------------------------------------------------- invalid parameters
 
 @pytest.mark.parametrize("name", ["NewtonsCradle", "HertzCradle"])

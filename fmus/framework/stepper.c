@@ -818,9 +818,18 @@ static Status step_with_events(Instance *inst, const char *function, RightHandSi
                 s->active_constraints = active_before;
                 memory->n_events = m0.n_events;
                 count_work(memory, f);
-                finish(inst, t, ta - t, ta);
-                log_discard(inst, "%s: the constraints at t = %.17g are dependent (an impact or a contact force has no "
-                            "unique solution); stopped there (last successful time %.17g)", function, ta, ta);
+                {
+                    double good = ta;
+                    if (!evaluate_at(inst, ta, x, checked)) { /* its outputs overflow: back to the call's start */
+                        memcpy(x, x_call, sizeof x_call);
+                        *memory = m_call;
+                        s->active_constraints = active_call;
+                        good = t;
+                    }
+                    finish(inst, t, good - t, good);
+                    log_discard(inst, "%s: the constraints at t = %.17g are dependent (an impact or a contact force has "
+                                "no unique solution); stopped at the last successful time %.17g", function, ta, good);
+                }
                 return STATUS_DISCARD;
             }
             {
