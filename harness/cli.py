@@ -427,8 +427,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--step", type=positive_number, help="communication step [s] (default: the system's)")
     p.add_argument("--algorithm", choices=["jacobi", "gauss-seidel"], default="gauss-seidel")
     p.add_argument("--extrapolation", choices=["hold", "linear"],
-                   help="inputs over a macro step (default: linear, or hold where an FMI 3.0 component receives "
-                        "inputs: FMI 3.0 has no input derivatives)")
+                   help="inputs over a macro step (default: linear, or hold where a component receives inputs it cannot "
+                        "take on a line: an FMI 3.0 FMU whose inputs are not set in intermediate updates)")
     p.add_argument("--on-discard", choices=["stop", "retry"], default="stop",
                    help="after fmi2Discard: stop, or roll back and retry with halved steps")
     p.add_argument("--iterate", type=positive_number, metavar="TOL",

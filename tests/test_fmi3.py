@@ -193,6 +193,127 @@ def test_the_callback_cannot_step_or_read_parameters(fmi3_paths, fmi3_unzipped):
     fmu.freeInstance()
 
 
+def asking_run(fmi3_paths, fmi3_unzipped, force, answer, registered=("F_x",), steps=5, H=0.1, log=None):
+    """SimplePendulum (rk4, h = 0.01) stepped by H with F_x = force(t0) set before each step and the inputs
+    `registered` for intermediate updates, answered by answer(fmu, t): the calls of the callback
+    (t, set requested, get allowed, step finished) and the states after each step."""
+    refs = references(fmi3_paths["SimplePendulum"])
+    calls, states, holder = [], [], {}
+
+    def intermediate(environment, t, set_requested, get_allowed, step_finished, can_return_early, early, early_time):
+        calls.append((t, bool(set_requested), bool(get_allowed), bool(step_finished)))
+        if set_requested:
+            answer(holder["fmu"], t)
+
+    fmu = slave(fmi3_paths, fmi3_unzipped, "SimplePendulum", log=log, intermediateUpdate=intermediate,
+                requiredIntermediateVariables=[refs[name] for name in registered])
+    holder["fmu"] = fmu
+    fmu.setInt64([refs["solver"]], [solver("rk4")])
+    fmu.setFloat64([refs["h"]], [0.01])
+    fmu.enterInitializationMode(startTime=0.0)
+    fmu.exitInitializationMode()
+    for k in range(steps):
+        fmu.setFloat64([refs["F_x"]], [force(k * H)])
+        fmu.doStep(k * H, H)
+        states.append(fmu.getFloat64([refs["phi"], refs["omega"]]))
+    fmu.freeInstance()
+    return calls, np.array(states)
+
+
+def fmi2_run_with_slopes(fmu_paths, force, slope, steps=5, H=0.1):
+    """The same run through FMI 2.0, each step's F_x with its derivative set (None: held)."""
+    from fmpy.fmi2 import FMU2Slave
+    md = read_model_description(str(fmu_paths["SimplePendulum"]))
+    refs = {v.name: v.valueReference for v in md.modelVariables}
+    fmu = FMU2Slave(guid=md.guid, unzipDirectory=extract(str(fmu_paths["SimplePendulum"])),
+                    modelIdentifier=md.coSimulation.modelIdentifier, instanceName="two")
+    fmu.instantiate()
+    fmu.setInteger([refs["solver"]], [solver("rk4")])
+    fmu.setReal([refs["h"]], [0.01])
+    fmu.enterInitializationMode()
+    fmu.exitInitializationMode()
+    states = []
+    for k in range(steps):
+        fmu.setReal([refs["F_x"]], [force(k * H)])
+        if slope is not None:
+            fmu.setRealInputDerivatives([refs["F_x"]], [1], [slope])
+        fmu.doStep(k * H, H)
+        states.append(fmu.getReal([refs["phi"], refs["omega"]]))
+    fmu.freeInstance()
+    return np.array(states)
+
+
+def test_registered_inputs_are_asked_for_at_the_step_end_and_follow_a_line(fmu_paths, fmi3_paths, fmi3_unzipped):
+    """FMI 3.0 has no input derivatives: an importer that registers an input is asked for it once per step, before
+    the step, at its end (set requested, nothing readable, not a finished step), and the step takes the input
+    along the line to the value given: FMI 2.0's numbers with that slope set as the input derivative. An importer
+    that registered only inputs is not called at the internal steps."""
+    force = lambda t: 2.0 + 3.0 * t  # noqa: E731
+    refs = references(fmi3_paths["SimplePendulum"])
+    calls, states = asking_run(fmi3_paths, fmi3_unzipped, force,
+                               lambda fmu, t: fmu.setFloat64([refs["F_x"]], [force(t)]))
+    assert [c[1:] for c in calls] == [(True, False, False)] * 5
+    assert np.allclose([c[0] for c in calls], 0.1 * np.arange(1, 6), rtol=0, atol=1e-15)
+    along = fmi2_run_with_slopes(fmu_paths, force, 3.0)
+    assert np.allclose(states, along, rtol=0, atol=1e-13)
+    held = fmi2_run_with_slopes(fmu_paths, force, None)
+    assert np.max(np.abs(states - held)) > 1e-4  # the slope matters at this force
+    # an input not given is held: the FMI 2.0 numbers without slopes, bit for bit
+    calls, unanswered = asking_run(fmi3_paths, fmi3_unzipped, force, lambda fmu, t: None)
+    assert len(calls) == 5 and np.array_equal(unanswered, held)
+
+
+def test_the_request_for_inputs_refuses_reads_other_variables_and_lines_that_overflow(fmi3_paths, fmi3_unzipped):
+    refs = references(fmi3_paths["SimplePendulum"])
+    log, statuses = Log(), []
+
+    def answer(fmu, t):
+        values = (ctypes.c_double * 1)()
+        for function, name, value in (("fmi3GetFloat64", "phi", None), ("fmi3SetFloat64", "F_y", 1.0),
+                                      ("fmi3SetFloat64", "L", 2.0), ("fmi3SetFloat64", "F_x", 1e308)):
+            vr = (ctypes.c_uint32 * 1)(refs[name])
+            if value is not None:
+                values[0] = value
+            statuses.append(raw(fmu, function)(vr, ctypes.c_size_t(1), values, ctypes.c_size_t(1)))
+
+    with pytest.raises(Exception, match="fmi3DoStep failed"):
+        asking_run(fmi3_paths, fmi3_unzipped, lambda t: -1e308, answer, steps=1, log=log)
+    assert statuses == [fmi3Error, fmi3Error, fmi3Error, fmi3OK]
+    text = [m for _, m in log.messages]
+    assert "fmi3GetFloat64: the FMU asks for inputs at the step's end (intermediateVariableGetAllowed = false)" in text[0]
+    assert f"fmi3SetFloat64: F_y (value reference {refs['F_y']}) cannot be set here" in text[1]
+    assert "only the inputs registered in requiredIntermediateVariables" in text[1]
+    assert f"fmi3SetFloat64: L (value reference {refs['L']}) cannot be set here" in text[2]
+    assert text[-1] == ("fmi3DoStep: input F_x goes from -1e+308 at t = 0 to 1e+308 at t = 0.10000000000000001 "
+                        "(set in the intermediate update): its slope over the step is not finite")
+
+
+def test_inputs_cannot_be_set_at_internal_step_reports_and_parameters_not_registered(fmi3_paths, fmi3_unzipped):
+    refs = references(fmi3_paths["SimplePendulum"])
+    log, statuses, holder = Log(), [], {}
+
+    def intermediate(environment, t, set_requested, *rest):
+        if not set_requested:  # a report of an internal step (phi is registered too)
+            values = (ctypes.c_double * 1)(1.0)
+            statuses.append(raw(holder["fmu"], "fmi3SetFloat64")((ctypes.c_uint32 * 1)(refs["F_x"]),
+                                                                 ctypes.c_size_t(1), values, ctypes.c_size_t(1)))
+
+    fmu = slave(fmi3_paths, fmi3_unzipped, "SimplePendulum", log=log, intermediateUpdate=intermediate,
+                requiredIntermediateVariables=[refs["phi"], refs["F_x"]])
+    holder["fmu"] = fmu
+    fmu.enterInitializationMode(startTime=0.0)
+    fmu.exitInitializationMode()
+    fmu.doStep(0.0, 0.05)
+    assert statuses and set(statuses) == {fmi3Error}
+    assert f"F_x (value reference {refs['F_x']}) cannot be set here" in log.last()
+    fmu.freeInstance()
+    log = Log()
+    with pytest.raises(Exception, match="Failed to instantiate"):
+        slave(fmi3_paths, fmi3_unzipped, "SimplePendulum", log=log, intermediateUpdate=intermediate,
+              requiredIntermediateVariables=[refs["L"]])
+    assert f"requiredIntermediateVariables[0] = {refs['L']} is not a Float64 output or input" in log.last()
+
+
 def test_state_machine_and_argument_errors_name_what_is_wrong(fmi3_paths, fmi3_unzipped):
     refs = references(fmi3_paths["DoublePendulum"])
     log = Log()

@@ -163,6 +163,8 @@ static int input_index(unsigned int vr)
     return -1;
 }
 
+int core_input_index(unsigned int vr) { return input_index(vr); }
+
 /* ---------------------------------------------------------------- life cycle */
 
 Instance *core_instantiate(const char *function, Interface type, const char *name, const char *token,
@@ -381,7 +383,9 @@ static int value_in_range(Instance *inst, const char *function, const VariableIn
 static int value_acceptable(Instance *inst, const char *function, const VariableInfo *v, unsigned int vr,
                             double value, const int64_t *exact)
 {
-    const unsigned allowed = settable_in(v);
+    /* an input also while the FMU asks for it (the layer checks which are asked for) */
+    const unsigned allowed =
+        settable_in(v) | (v->causality == CAUSALITY_INPUT && inst->asking_inputs ? MS_INTERMEDIATE : 0u);
     char states[256];
     if (!(allowed & (unsigned)inst->s.machine_state)) {
         core_describe_states(inst, allowed, states, sizeof states);
@@ -1075,6 +1079,41 @@ Status core_get_output_derivatives(Instance *inst, const char *function, const u
     return STATUS_OK;
 }
 
+/* The inputs the importer registered, asked for at the step's end t + H: each then varies along the line from its
+ * value now to the one given, as an FMI 2.0 input along the derivative set (FMI 3.0 has no input derivatives). An
+ * input not given keeps its value. */
+static Status take_requested_inputs(Instance *inst, const char *function, double t, double H)
+{
+    double start[INPUT_SLOTS], end[INPUT_SLOTS];
+    int i;
+    gather_inputs(inst, start);
+    inst->s.machine_state = MS_INTERMEDIATE;
+    inst->asking_inputs = 1;
+    inst->request_inputs(inst, t + H);
+    inst->asking_inputs = 0;
+    inst->s.machine_state = MS_STEP_COMPLETE;
+    gather_inputs(inst, end);
+    scatter_inputs(inst->s.real, start);
+    memset(inst->s.input_derivative, 0, sizeof inst->s.input_derivative);
+#if N_INPUTS > 0
+    for (i = 0; i < N_INPUTS; i++) {
+        const double slope = (end[i] - start[i]) / H;
+        if (!inst->inputs_requested[i] || end[i] == start[i]) continue;
+        if (!isfinite(slope)) {
+            log_error(inst, "%s: input %s goes from %g at t = %.17g to %g at t = %.17g (set in the intermediate "
+                      "update): its slope over the step is not finite", function, REAL_VARIABLES[INPUT_VRS[i]].name,
+                      start[i], t, end[i], t + H);
+            return STATUS_ERROR;
+        }
+        inst->s.input_derivative[i] = slope;
+    }
+#else
+    (void)i, (void)end, (void)function, (void)t;
+#endif
+    inst->s.slopes_set = 1;
+    return STATUS_OK;
+}
+
 Status core_do_step(Instance *inst, const char *function, double t, double H)
 {
     Status status;
@@ -1094,6 +1133,7 @@ Status core_do_step(Instance *inst, const char *function, double t, double H)
         return STATUS_ERROR;
     }
     if (!ensure_constants(inst, function)) return STATUS_ERROR;
+    if (inst->request_inputs && take_requested_inputs(inst, function, t, H) != STATUS_OK) return STATUS_ERROR;
     flush_subnormals_begin(inst);
     status = step_to(inst, function, t, H);
     flush_subnormals_end(inst);

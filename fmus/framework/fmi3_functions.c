@@ -18,7 +18,7 @@
 
 #define CS_READABLE (MS_INITIALIZATION | MS_STEP_COMPLETE | MS_STEP_FAILED | MS_TERMINATED | MS_ERROR | MS_INTERMEDIATE)
 #define ME_READABLE (MS_INITIALIZATION | MS_EVENT | MS_CONTINUOUS | MS_TERMINATED | MS_ERROR)
-#define CS_SETTABLE (MS_INSTANTIATED | MS_INITIALIZATION | MS_STEP_COMPLETE)
+#define CS_SETTABLE (MS_INSTANTIATED | MS_INITIALIZATION | MS_STEP_COMPLETE | MS_INTERMEDIATE)
 #define ME_SETTABLE (MS_INSTANTIATED | MS_INITIALIZATION | MS_EVENT | MS_CONTINUOUS)
 #define CS_OUTSIDE_CALLBACKS (CS_ANY & ~MS_INTERMEDIATE)
 
@@ -105,17 +105,25 @@ static void emit_fmi3(const Instance *inst, Status status, const char *category,
     if (logger) logger(inst->environment, (fmi3Status)status, category, message);
 }
 
-/* The importer's intermediate-update callback at an accepted internal step: the outputs may be read
- * (they are the variables with intermediateUpdate = true), nothing may be set, and this FMU never
- * returns early. */
-static void report_fmi3(Instance *inst, double t)
+/* The importer's intermediate-update callback at t; this FMU never returns early. */
+static void call_intermediate_update(Instance *inst, double t, fmi3Boolean set_requested, fmi3Boolean get_allowed,
+                                     fmi3Boolean step_finished)
 {
     const fmi3IntermediateUpdateCallback callback = (fmi3IntermediateUpdateCallback)inst->api_intermediate;
     fmi3Boolean early_return_requested = fmi3False;
     fmi3Float64 early_return_time = t;
-    callback(inst->environment, t, fmi3False, fmi3True, fmi3True, fmi3False, &early_return_requested,
+    callback(inst->environment, t, set_requested, get_allowed, step_finished, fmi3False, &early_return_requested,
              &early_return_time);
 }
+
+/* At an accepted internal step: the outputs may be read (they are the variables with intermediateUpdate = true),
+ * nothing may be set. */
+static void report_fmi3(Instance *inst, double t) { call_intermediate_update(inst, t, fmi3False, fmi3True, fmi3True); }
+
+/* At the start of a step, asking for the inputs the importer registered at t, the step's end
+ * (intermediateStepFinished = false: a point the step will pass, as a stage of a Runge-Kutta step is); they may be
+ * set, nothing may be read. */
+static void request_fmi3(Instance *inst, double t) { call_intermediate_update(inst, t, fmi3True, fmi3False, fmi3False); }
 
 /* FMI 3.0 gives every array its length: for scalar variables it must equal the number of references. */
 static int one_value_each(Instance *inst, const char *function, size_t nvr, size_t n_values)
@@ -173,6 +181,7 @@ fmi3Instance fmi3InstantiateCoSimulation(fmi3String instanceName, fmi3String ins
 {
     Instance *inst;
     size_t i;
+    int asks_inputs = 0, reports_outputs = 0;
     (void)resourcePath;
     (void)visible;
     if (eventModeUsed) {
@@ -193,16 +202,24 @@ fmi3Instance fmi3InstantiateCoSimulation(fmi3String instanceName, fmi3String ins
     }
     for (i = 0; i < nRequiredIntermediateVariables; i++) {
         const fmi3ValueReference vr = requiredIntermediateVariables[i];
-        if (vr >= N_REAL || core_variable(vr)->causality != CAUSALITY_OUTPUT) {
+        const int input = vr < N_REAL ? core_input_index(vr) : -1;
+        if (input >= 0) {
+            inst->inputs_requested[input] = 1;
+            asks_inputs = 1;
+        } else if (vr < N_REAL && core_variable(vr)->causality == CAUSALITY_OUTPUT) {
+            reports_outputs = 1;
+        } else {
             log_error(inst, "fmi3InstantiateCoSimulation: requiredIntermediateVariables[%lu] = %u is not a Float64 "
-                      "output (only outputs have intermediateUpdate = true)", (unsigned long)i, vr);
+                      "output or input (only those have intermediateUpdate = true)", (unsigned long)i, vr);
             core_free(inst);
             return NULL;
         }
     }
     if (intermediateUpdate) {
         inst->api_intermediate = (void (*)(void))intermediateUpdate;
-        inst->report_step = report_fmi3;
+        /* an importer that registered only inputs is asked for them, not told of every internal step */
+        if (reports_outputs || !asks_inputs) inst->report_step = report_fmi3;
+        if (asks_inputs) inst->request_inputs = request_fmi3;
     }
     return inst;
 }
@@ -293,12 +310,35 @@ static int readable_now(Instance *inst, const char *function, const fmi3ValueRef
 {
     size_t i;
     if (inst->s.machine_state != MS_INTERMEDIATE) return 1;
+    if (inst->asking_inputs) {
+        log_error(inst, "%s: the FMU asks for inputs at the step's end (intermediateVariableGetAllowed = false): "
+                  "nothing can be read until it reports a step", function);
+        return 0;
+    }
     for (i = 0; i < n; i++)
         if (vr[i] != TIME_VR && (vr[i] >= N_REAL || core_variable(vr[i])->causality != CAUSALITY_OUTPUT)) {
             log_error(inst, "%s: value reference %u is not an output: in Intermediate Update Mode only the outputs "
                       "(intermediateUpdate = true) can be read", function, vr[i]);
             return 0;
         }
+    return 1;
+}
+
+/* In Intermediate Update Mode only the registered inputs, and only when the FMU asks for them. */
+static int settable_now(Instance *inst, const fmi3ValueReference vr[], size_t n)
+{
+    size_t i;
+    if (inst->s.machine_state != MS_INTERMEDIATE) return 1;
+    for (i = 0; i < n; i++) {
+        const int input = vr[i] < N_REAL ? core_input_index(vr[i]) : -1;
+        if (!inst->asking_inputs || input < 0 || !inst->inputs_requested[input]) {
+            log_error(inst, "fmi3SetFloat64: %s (value reference %u) cannot be set here: in Intermediate Update Mode "
+                      "only the inputs registered in requiredIntermediateVariables, when the FMU asks for them "
+                      "(intermediateVariableSetRequested = true)", vr[i] < N_REAL ? core_variable(vr[i])->name : "?",
+                      vr[i]);
+            return 0;
+        }
+    }
     return 1;
 }
 
@@ -333,6 +373,7 @@ fmi3Status fmi3SetFloat64(fmi3Instance instance, const fmi3ValueReference vr[], 
     if (!inst) return fmi3Error;
     if (!one_value_each(inst, __func__, nvr, nValues) || !core_arrays_present(inst, __func__, nvr, vr, values))
         return fmi3Error;
+    if (!settable_now(inst, vr, nvr)) return fmi3Error;
     for (i = 0; i < nvr; i++)
         if (vr[i] == TIME_VR) {
             log_error(inst, "fmi3SetFloat64: variable time (value reference %u) is the independent variable: it moves "

@@ -141,6 +141,12 @@ struct Instance {
      * in place and the machine state MS_INTERMEDIATE; NULL when the importer asked for no reports. */
     void (*report_step)(Instance *inst, double t);
     void (*api_intermediate)(void); /* the importer's callback behind report_step, cast back by the layer */
+    /* FMI 3.0 Co-Simulation: asks the importer, through the same callback, for the inputs it registered
+     * (inputs_requested) at time t, the end of the step about to be taken; NULL when it registered none.
+     * asking_inputs: inside that request, where those inputs may be set. */
+    void (*request_inputs)(Instance *inst, double t);
+    unsigned char inputs_requested[INPUT_SLOTS];
+    int asking_inputs;
     const char *const *state_names; /* the layer's names of the MS_ states, by bit position */
     void *(*allocate)(size_t count, size_t size);
     void (*release)(void *memory);
@@ -244,6 +250,8 @@ INTERNAL Status core_set_input_derivatives(Instance *inst, const char *function,
 INTERNAL Status core_get_output_derivatives(Instance *inst, const char *function, const unsigned int vr[], size_t n,
                                             const int32_t orders[], double value[]);
 INTERNAL Status core_do_step(Instance *inst, const char *function, double t, double H);
+/* The index of the Real input with value reference vr among the inputs, or -1. */
+INTERNAL int core_input_index(unsigned int vr);
 /* Partial derivatives of state derivatives and continuous outputs (the unknowns) with respect to
  * states and inputs (the knowns), from the model's exact Jacobian: directional, J seed (seed per
  * known, sensitivity per unknown), and adjoint, seed^T J (seed per unknown, sensitivity per known). */

@@ -8,11 +8,13 @@ discard, step doubling; `harness.cosim.energy`: the energy step control; `harnes
 that land on contacts) and, for plain fixed-step runs and contact steps over plain macro steps, the same
 loop in C (`harness.cosim.native_core`), which the tests keep bit-identical to the Python parts.
 
-FMI 3.0 has no input derivatives, so an FMI 3.0 component cannot receive a linearly extrapolated
-input: by default the inputs are extrapolated linearly when every receiving component is FMI 2.0
-and held otherwise; asking for linear extrapolation (or iteration, which interpolates the inputs
-the same way) with an FMI 3.0 receiver is refused by name. FMI 3.0 sources hand over their output
-derivatives like FMI 2.0 ones.
+FMI 3.0 has no input derivatives: an FMI 3.0 component whose inputs its FMU lets the master set in
+intermediate updates asks for them at the start of each step, at the step's end, and the master answers
+on the line it extrapolates (`harness.cosim.unit.Unit.line`), which gives FMI 2.0's numbers. By default the
+inputs are extrapolated linearly unless a receiver cannot take them so (an FMI 3.0 FMU without such inputs),
+where they are held; asking for linear extrapolation (or iteration, which interpolates the inputs the same
+way) with such a receiver is refused by name. FMI 3.0 sources hand over their output derivatives like FMI
+2.0 ones.
 
 The loop calls the FMUs' C functions directly with preallocated ctypes arrays: per FMU and macro
 step one set, one step, one get of the float variables (plus the derivative calls for linear
@@ -31,7 +33,7 @@ from harness.cosim.algorithms import ALGORITHMS, Exchange
 from harness.cosim.contacts import ENERGY_SMALLEST, ContactSteps, contact_watches
 from harness.cosim.energy import BondedStep, EnergyController, EnergyStepControl, PowerBonds, order_of
 from harness.cosim.controls import Iteration, RetryOnDiscard, StepDoubling, Stepper, Tally
-from harness.cosim.native_core import NativeLoop, load_core
+from harness.cosim.native_core import NativeLoop, input_line_answer, load_core
 from harness.cosim.structure import System
 from harness.cosim.unit import Arena, Unit
 from harness.errors import HarnessError, where
@@ -49,7 +51,7 @@ class MasterOptions:
     step: float
     start: float = 0.0
     algorithm: str = "gauss-seidel"
-    extrapolation: str | None = None  # hold or linear; None: linear unless an FMI 3.0 component receives inputs
+    extrapolation: str | None = None  # hold or linear; None: linear unless a receiver cannot take it
     on_discard: str = "stop"  # "stop", or "retry": roll back (FMU states) and halve the step
     max_halvings: int = 10
     iterate_tol: float | None = None  # iterate each macro step to this change in the outputs
@@ -123,13 +125,17 @@ class Master:
         # instances of one FMU share its extraction and its loaded library
         self.fmus = fmus if fmus is not None else SharedFmus()
         arena = Arena()  # and the units' buffers lie side by side
+        answer = input_line_answer()
         try:  # whatever fails while setting up, the instances made so far are freed
             with where(system.origin, system.workspace):
                 for component in system.components:
                     with held():  # each instance made is in `units`, for free() to free
-                        self.units.append(Unit(component, system, self.fmus, arena))
+                        self.units.append(Unit(component, system, self.fmus, arena, answer))
                 self.options = dataclasses.replace(options, extrapolation=self._extrapolation(options))
                 self.exchange = Exchange(self.units, self.options.extrapolation == "linear")
+                for unit in self.units:
+                    if unit.line is not None:
+                        unit.line.active = int(self.exchange.linear)
                 self._check_states(options)
         except BaseException:
             self.free()
@@ -173,18 +179,21 @@ class Master:
         return stepper
 
     def _extrapolation(self, options: MasterOptions) -> str:
-        """The extrapolation asked for, or by default linear unless an FMI 3.0 component receives
-        inputs (FMI 3.0 has no input derivatives to hand them over)."""
-        receivers = [u for u in self.units if u.n_in and u.set_derivatives is None]
+        """The extrapolation asked for, or by default linear unless a component receives inputs it cannot
+        take on a line: an FMI 3.0 FMU whose inputs cannot be set in intermediate updates (FMI 3.0 has no
+        input derivatives)."""
+        receivers = [u for u in self.units if u.n_in and not u.takes_slopes]
         if not receivers:
             return options.extrapolation or "linear"
         names = ", ".join(f"{u.name!r}" for u in receivers)
         if options.extrapolation == "linear":
-            raise HarnessError(f"linear extrapolation sets input derivatives, which the FMI 3.0 component(s) {names} "
-                               "do not take: use --extrapolation hold, or their FMI 2.0 FMUs")
+            raise HarnessError(f"linear extrapolation hands over inputs on a line, which the FMI 3.0 component(s) "
+                               f"{names} cannot take (their inputs are not set in intermediate updates): use "
+                               "--extrapolation hold, or their FMI 2.0 FMUs")
         if options.iterate_tol:
-            raise HarnessError(f"iterated macro steps interpolate the inputs through input derivatives, which the "
-                               f"FMI 3.0 component(s) {names} do not take: leave out --iterate, or use their FMI 2.0 FMUs")
+            raise HarnessError(f"iterated macro steps interpolate the inputs on a line, which the FMI 3.0 component(s) "
+                               f"{names} cannot take (their inputs are not set in intermediate updates): leave out "
+                               "--iterate, or use their FMI 2.0 FMUs")
         return "hold"
 
     def _check_states(self, options: MasterOptions) -> None:

@@ -14,8 +14,22 @@ _uint_p = ctypes.POINTER(ctypes.c_uint)
 _int_p = ctypes.POINTER(ctypes.c_int)
 
 
+class InputLine(ctypes.Structure):
+    """cosim_core.c's InputLine: how an FMI 3.0 unit that receives inputs asks for them during its step."""
+    _fields_ = [("component", ctypes.c_void_p), ("set_float", ctypes.c_void_p), ("n", ctypes.c_int),
+                ("vrs", _uint_p), ("u", _double_p), ("du", _double_p), ("values", _double_p), ("t0", ctypes.c_double),
+                ("active", ctypes.c_int), ("status", ctypes.c_int)]
+
+
+def input_line_answer() -> int | None:
+    """The address of cosim_core.c's intermediate-update callback that hands an FMI 3.0 unit its inputs'
+    line, or None when the core has not been built (FMI 3.0 receivers then hold their inputs)."""
+    library = load_library("cosim_core")
+    return ctypes.cast(library.cosim_answer_inputs, ctypes.c_void_p).value if library is not None else None
+
+
 class CoreUnit(ctypes.Structure):
-    _fields_ = [("calls", FmiCalls), ("n_out", ctypes.c_int), ("n_in", ctypes.c_int),
+    _fields_ = [("calls", FmiCalls), ("line", ctypes.POINTER(InputLine)), ("n_out", ctypes.c_int), ("n_in", ctypes.c_int),
                 ("n_int", ctypes.c_int), ("out_vrs", _uint_p), ("in_vrs", _uint_p), ("int_vrs", _uint_p),
                 ("orders_out", _int_p), ("orders_in", _int_p), ("y_now", _double_p), ("dy_now", _double_p),
                 ("y_next", _double_p), ("dy_next", _double_p), ("u", _double_p), ("du", _double_p),
@@ -129,6 +143,8 @@ class NativeLoop:
             positions = self._keep[0][1, first:]
             first += unit.n_in
             fill_calls(struct.calls, unit.instance.raw, unit.integers)
+            if unit.line is not None:
+                struct.line = ctypes.pointer(unit.line)
             struct.int_vrs = unit.integers.vrs
             struct.n_out, struct.n_in, struct.n_int = unit.n_out, unit.n_in, unit.n_int
             struct.out_vrs, struct.in_vrs = unit.out_vrs, unit.in_vrs

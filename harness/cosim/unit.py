@@ -7,9 +7,10 @@ import ctypes
 
 import numpy as np
 
+from harness.cosim.native_core import InputLine
 from harness.cosim.structure import Component, System
 from harness.errors import HarnessError
-from harness.fmi.fmu_instance import ERROR, STATUS_NAMES, SharedFmus
+from harness.fmi.fmu_instance import ERROR, STATUS_NAMES, AskedInputs, SharedFmus
 from harness.interrupts import held
 
 
@@ -50,16 +51,38 @@ class Unit:
     derivatives) at the start of the macro step; `y_next_view`/`dy_next_view` what the last read
     returned; `u_view`/`du_view` the inputs (and derivatives) the next write hands over."""
 
-    def __init__(self, component: Component, system: System, fmus: SharedFmus, arena: Arena):
+    def __init__(self, component: Component, system: System, fmus: SharedFmus, arena: Arena,
+                 answer: int | None = None):
+        """`answer`: the address of the C callback that hands an FMI 3.0 unit its inputs in intermediate
+        updates (native_core.input_line_answer), None to hold them."""
         self.name = component.name
         self._arena = arena
-        self.instance = fmus.instance(component.fmu, component.name)
+        self.line: InputLine | None = None  # where an FMI 3.0 unit asks for its inputs during a step
+        self.instance = fmus.instance(component.fmu, component.name,
+                                      asked_inputs=self._asked_inputs(component, system, fmus, answer))
         self.live_states = 0  # FMU states saved and not yet released
         try:
             self._prepare(component, system)
         except BaseException:
             self.instance.free()
             raise
+
+    def _asked_inputs(self, component: Component, system: System, fmus: SharedFmus,
+                      answer: int | None) -> AskedInputs | None:
+        """FMI 3.0 has no input derivatives: an FMI 3.0 unit whose connected inputs its FMU lets the master set
+        in intermediate updates registers them, and asks for them at the start of each step, at its end; the
+        master then hands it the values on the line it extrapolates (`line`, filled in `_prepare`)."""
+        description = fmus.description(component.fmu)
+        names = [c.input for c in system.connections if c.target == self.name]
+        if answer is None or not names or description.fmiVersion != "3.0" or description.coSimulation is None \
+                or not description.coSimulation.providesIntermediateUpdate:
+            return None
+        variables = {v.name: v for v in description.modelVariables}
+        asked = [variables.get(name) for name in names]
+        if not all(v is not None and v.causality == "input" and v.intermediateUpdate for v in asked):
+            return None
+        self.line = InputLine()
+        return AskedInputs(answer, ctypes.addressof(self.line), tuple(v.valueReference for v in asked))
 
     def _prepare(self, component: Component, system: System) -> None:
         self.start = component.start
@@ -101,6 +124,17 @@ class Unit:
         energy_name = "E" if "E" in self.real_outputs else "E_pot" if "E_pot" in self.real_outputs else None
         self.energy_index = self.real_outputs.index(energy_name) if energy_name else None
         self.can_save = bool(self.instance.model_description.coSimulation.canGetAndSetFMUstate)
+        if self.line is not None:
+            line = self.line
+            line.component, line.set_float = raw.component.value, raw.function(raw.float_type.setter)
+            line.n, line.vrs, line.u, line.du = n_in, self.in_vrs, self.u, self.du
+            line.values = doubles(n_in)
+
+    @property
+    def takes_slopes(self) -> bool:
+        """Inputs can vary linearly over a step: FMI 2.0's input derivatives, or FMI 3.0's intermediate
+        updates."""
+        return self.set_derivatives is not None or self.line is not None
 
     def check(self, status: int, what: str) -> int:
         if status >= ERROR:
@@ -115,12 +149,19 @@ class Unit:
 
     def write_inputs(self, derivatives: bool) -> None:
         self.check(self.set_real(self.component, self.in_vrs, self.n_in, self.u), self.names["set"])
-        if derivatives:
+        if derivatives and self.set_derivatives is not None:  # FMI 3.0: asked for during the step (`line`)
             self.check(self.set_derivatives(self.component, self.in_vrs, self.n_in, self.orders_in, self.du),
                        self.names["input_derivatives"])
 
     def step(self, t: float, H: float) -> int:
-        return self.check(self.do_step(self.component, t, H, 1), f"{self.names['do_step']} at t = {t}")
+        line = self.line
+        if line is not None:
+            line.t0, line.status = t, 0
+        status = self.do_step(self.component, t, H, 1)
+        if line is not None and line.status >= ERROR:
+            raise HarnessError(f"{self.name}: {self.names['set']} of its inputs, asked for in the step from t = {t}, "
+                               f"returned {STATUS_NAMES[line.status]}: {self.instance.last_message()}")
+        return self.check(status, f"{self.names['do_step']} at t = {t}")
 
     def accept(self, derivatives: bool) -> None:
         """The outputs just read become those at the start of the next macro step."""

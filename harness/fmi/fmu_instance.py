@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import ctypes
 import math
+import os
 import re
 from dataclasses import dataclass, field
 from functools import lru_cache
@@ -122,9 +123,32 @@ def read_description(path: Path):
     """fmpy's model description of an FMI 2.0 or 3.0 FMU; a one-line HarnessError for anything else."""
     fmi_version(path)
     try:
-        return read_model_description(str(path))
+        description = read_model_description(str(path))
     except Exception as error:  # fmpy raises plain exceptions for invalid files
         raise HarnessError(f"{path}: invalid modelDescription.xml ({first_problem(error)})") from None
+    if description.fmiVersion == "3.0":
+        _read_intermediate_updates(path, description)
+    return description
+
+
+def _read_intermediate_updates(path: Path, description) -> None:
+    """The variables' intermediateUpdate attribute, which fmpy's reader leaves at its default (false)."""
+    import zipfile
+    try:
+        if Path(path).is_dir():
+            text = (Path(path) / "modelDescription.xml").read_bytes()
+        elif zipfile.is_zipfile(path):
+            with zipfile.ZipFile(path) as archive:
+                text = archive.read("modelDescription.xml")
+        else:
+            text = Path(path).read_bytes()
+        variables = ElementTree.fromstring(text).find("ModelVariables")
+    except (OSError, KeyError, ElementTree.ParseError, zipfile.BadZipFile):
+        return  # fmpy read it: whatever keeps this from reading it again leaves the attribute false
+    flagged = {element.get("name") for element in (variables if variables is not None else [])
+               if element.get("intermediateUpdate") == "true"}
+    for variable in description.modelVariables:
+        variable.intermediateUpdate = variable.name in flagged
 
 
 def float_start_values(description, overrides: dict | None = None) -> dict[str, float]:
@@ -175,17 +199,46 @@ def exact_integer(name: str, value) -> int:
     raise HarnessError(f"{name} = {value!r} is not an integer")
 
 
+@dataclass(frozen=True)
+class AskedInputs:
+    """FMI 3.0 Co-Simulation inputs the importer sets in intermediate updates: `callback` (the address of a C
+    fmi3IntermediateUpdateCallback) is called with `environment` (an address) as the instance environment,
+    and the inputs `references` are registered in requiredIntermediateVariables."""
+    callback: int
+    environment: int
+    references: tuple[int, ...]
+
+
+def _instantiate_asking(fmu: FMU3Slave, logging_on: bool, log_message, early_return: bool,
+                        asked: AskedInputs) -> None:
+    """fmi3InstantiateCoSimulation with an instance environment of the caller's, which fmpy's
+    instantiate leaves NULL, so that one C callback serves every instance."""
+    from fmpy.fmi3 import fmi3IntermediateUpdateCallback, fmi3LogMessageCallback, fmi3ValueReference
+    fmu.logMessage = fmi3LogMessageCallback(log_message)  # kept on the object, alive as long as the instance
+    fmu.intermediateUpdate = fmi3IntermediateUpdateCallback(asked.callback)
+    fmu.requiredIntermediateVariables = (fmi3ValueReference * len(asked.references))(*asked.references)
+    resources = os.path.join(fmu.unzipDirectory, "resources") + os.path.sep  # as fmpy gives it
+    fmu.component = fmu.fmi3InstantiateCoSimulation(
+        fmu.instanceName.encode(), fmu.guid.encode(), resources.encode(), False, logging_on, False, early_return,
+        fmu.requiredIntermediateVariables, len(asked.references), ctypes.c_void_p(asked.environment),
+        fmu.logMessage, fmu.intermediateUpdate)
+    if not fmu.component:
+        raise Exception("fmi3InstantiateCoSimulation returned NULL")
+
+
 class FmuInstance:
     """An instantiated FMU of either version (Co-Simulation by default, Model Exchange with kind="ME")."""
 
     def __init__(self, fmu: str | Path, kind: str = "CS", name: str = "instance", logging_on: bool = False,
                  unzipdir: str | None = None, description=None, template: "FmuInstance | None" = None,
-                 early_return: bool = False):
+                 early_return: bool = False, asked_inputs: AskedInputs | None = None):
         """`unzipdir`, `description` and `template` (an instance of the same FMU and kind, whose loaded
         library and function table this one shares): what `SharedFmus` hands each further instance of
         an FMU; by default the instance makes its own. `early_return`: an FMI 3.0 Co-Simulation instance
-        may end a step at an event (`returned_early`)."""
+        may end a step at an event (`returned_early`). `asked_inputs`: an FMI 3.0 Co-Simulation instance
+        asks for these inputs in intermediate updates."""
         self.early_return = early_return
+        self.asked_inputs = asked_inputs
         self._template = template
         self.path = Path(fmu)
         self.fmu = None
@@ -235,7 +288,10 @@ class FmuInstance:
             self.loaded = fmu  # what a further instance of this FMU may share (`template`)
             self.library = library
             try:
-                if fmi3:
+                if fmi3 and kind == "CS" and self.asked_inputs is not None:
+                    _instantiate_asking(fmu, logging_on, self.log.fmi3_log_message, self.early_return,
+                                        self.asked_inputs)
+                elif fmi3:
                     options = {"earlyReturnAllowed": True} if self.early_return and kind == "CS" else {}
                     fmu.instantiate(loggingOn=logging_on, logMessage=self.log.fmi3_log_message, **options)
                 else:
@@ -524,17 +580,25 @@ class SharedFmus:
         self._templates: dict[tuple[Path, str], FmuInstance] = {}
         self._held: list[int] = []  # a reference of our own to each library the templates' tables point into
 
-    def instance(self, fmu: str | Path, name: str, kind: str = "CS") -> FmuInstance:
+    def _extraction(self, fmu: str | Path) -> tuple[Path, str, object]:
+        """The FMU's path as the key, its folder and its model description (extracted once)."""
         path = Path(fmu).resolve() if Path(fmu).exists() else Path(fmu)
         if path not in self._extracted:
             description = read_description(path)
             # (a folder an interrupt keeps from being stored here is removed at exit)
             folder = extract_fmu(path, (PLATFORM_FOLDERS[description.fmiVersion],))
             self._extracted[path] = (str(folder), description)
-        unzipdir, description = self._extracted[path]
+        return (path, *self._extracted[path])
+
+    def description(self, fmu: str | Path):
+        return self._extraction(fmu)[2]
+
+    def instance(self, fmu: str | Path, name: str, kind: str = "CS",
+                 asked_inputs: AskedInputs | None = None) -> FmuInstance:
+        path, unzipdir, description = self._extraction(fmu)
         with held():  # the instance and its place as the FMU's template (with a library reference) together
             instance = FmuInstance(fmu, kind=kind, name=name, unzipdir=unzipdir, description=description,
-                                   template=self._templates.get((path, kind)))
+                                   template=self._templates.get((path, kind)), asked_inputs=asked_inputs)
             if (path, kind) not in self._templates:
                 self._templates[path, kind] = instance
                 self._held.append(ctypes.CDLL(str(instance.library))._handle)

@@ -90,7 +90,7 @@ def from_fmi2(fmi2_text: str, needs: dict[str, set[str]] | None = None,
             if typed.get("derivative"):
                 state = by_index[int(typed.get("derivative"))]
                 attributes += f' derivative="{state.get("valueReference")}"'
-            if v.get("causality") == "output":
+            if v.get("causality") in ("output", "input"):  # outputs reported at steps, inputs asked for
                 attributes += ' intermediateUpdate="true"'
             lines.append(f"    <Float64{attributes}/>")
         elif typed.tag == "Enumeration":

@@ -49,19 +49,14 @@ class CouplingPoint:
 
 def derived_reference(system: System, times: np.ndarray) -> tuple[dict[str, np.ndarray], list[tuple[str, str]]]:
     """The scene's monolithic reference (`harness.studies.monolithic`) at `times`: its columns and the
-    (x, y) column pairs of every object point. Refuses a scene it cannot derive, and FMI 3.0
-    components, which take no input derivatives (the studies compare linear extrapolation)."""
+    (x, y) column pairs of every object point. Refuses a scene it cannot derive. (FMI 3.0 receivers take the
+    linear extrapolation the studies compare through intermediate updates; the master refuses, by name, one
+    whose FMU does not let it set their inputs so.)"""
     scene = MonolithicScene(system)
     if scene.contacts:
         raise HarnessError(f"{system.name}: its Contact elements' contacts last about a tenth of a millisecond, "
                            f"which the coupling chart's macro steps ({max(STEPS):g} to {min(STEPS):g} s) step over: "
                            "chart it with `harness chart contacts`")
-    newer = [name for name, version in scene.fmi_versions.items() if version != "2.0"]
-    if newer:
-        raise HarnessError(f"{system.name}: the coupling studies compare linear extrapolation and iterated steps, "
-                           f"which hand inputs over with their derivatives; {', '.join(newer)} "
-                           f"{'is an FMI 3.0 FMU' if len(newer) == 1 else 'are FMI 3.0 FMUs'}, which take none: "
-                           "use the FMI 2.0 FMUs")
     return scene.solve(times), scene.point_columns()
 
 

@@ -207,14 +207,12 @@ class MonolithicScene:
         self.kinds: dict[str, _Kind] = {}
         self.elements: dict[str, _Elements] = {}  # by law
         self.where: dict[str, tuple[str, int]] = {}  # component -> (kind or element law, row)
-        self.fmi_versions: dict[str, str] = {}  # component -> its FMU's FMI version
         self.events: list[tuple[float, str, str]] = []  # (time, contact, "onset" or "end") of the last solve
         start = []
         offset = 0
         facts = _FmuFacts(system)
         for component in system.components:
             description, law, object_file = facts(component)
-            self.fmi_versions[component.name] = description.fmiVersion
             values = float_start_values(description, component.start)
             if law is not None:
                 elements = self.elements.setdefault(law.identifier, _Elements(law))

@@ -9,8 +9,37 @@
 
 #include "fmi_calls.h"
 
+/* FMI 3.0 has no input derivatives: an FMI 3.0 unit that receives inputs registers them for intermediate
+ * updates, with this struct as its instance environment, and at the start of each step it asks (the callback
+ * below) for their values at the step's end; it takes them on the line the master extrapolates, u + (t - t0) du,
+ * and varies each input along the line from its value now to that one. */
+typedef struct {
+    void *component, *set_float; /* the instance and its fmi3SetFloat64 */
+    int n;
+    const unsigned *vrs;
+    const double *u, *du;        /* the inputs at the step's start t0, and their slopes */
+    double *values;              /* the n values set */
+    double t0;
+    int active;                  /* 0: inputs held (nothing is set) */
+    int status;                  /* the worst status a set returned in the step */
+} InputLine;
+
+void cosim_answer_inputs(void *environment, double t, bool set_requested, bool get_allowed, bool step_finished,
+                         bool can_return_early, bool *early_return_requested, double *early_return_time)
+{
+    InputLine *line = (InputLine *)environment;
+    int i, status;
+    (void)get_allowed, (void)step_finished, (void)can_return_early, (void)early_return_requested;
+    (void)early_return_time;
+    if (!line || !set_requested || !line->active) return;
+    for (i = 0; i < line->n; i++) line->values[i] = line->u[i] + (t - line->t0) * line->du[i];
+    status = ((SetFloat3)line->set_float)(line->component, line->vrs, (size_t)line->n, line->values, (size_t)line->n);
+    if (status > line->status) line->status = status;
+}
+
 typedef struct {
     FmiCalls calls;
+    InputLine *line;         /* FMI 3.0 units that receive inputs: how they ask for them; else NULL */
     int n_out, n_in, n_int;
     const unsigned *out_vrs, *in_vrs, *int_vrs;
     const int *orders_out, *orders_in;
@@ -51,14 +80,20 @@ static int feed(CoreUnit *units, int k, double H, int linear, const int *stepped
         }
     }
     status = fmi_set_floats(&unit->calls, unit->in_vrs, unit->n_in, unit->u);
-    if (status >= CORE_ERROR || !linear) return status;
-    /* linear only where every receiver is FMI 2.0 (the master refuses it otherwise) */
+    /* an FMI 3.0 unit asks for its inputs' line during the step (InputLine) */
+    if (status >= CORE_ERROR || !linear || unit->calls.fmi3) return status;
     return fmi_set_input_derivatives(&unit->calls, unit->in_vrs, unit->n_in, unit->orders_in, unit->du);
 }
 
 static int step_and_read(CoreUnit *unit, double t, double H, int linear)
 {
-    int status = fmi_do_step(&unit->calls, t, H);
+    int status;
+    if (unit->line) {
+        unit->line->t0 = t;
+        unit->line->status = CORE_OK;
+    }
+    status = fmi_do_step(&unit->calls, t, H);
+    if (unit->line && unit->line->status >= CORE_ERROR) return CORE_ERROR; /* a set refused: the FMU logged why */
     if (status != CORE_OK && status != 1) return status;
     status = fmi_get_floats(&unit->calls, unit->out_vrs, unit->n_out, unit->y_next);
     if (status >= CORE_ERROR || !linear) return status;
