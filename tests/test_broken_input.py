@@ -5,6 +5,7 @@ from __future__ import annotations
 import io
 import json
 import os
+import re
 import shutil
 import signal
 import subprocess
@@ -71,6 +72,14 @@ def ssp_copy(tmp_path: Path) -> Path:
     return folder
 
 
+def ssd_edited(text: str, pattern: str, replacement: str) -> str:
+    """`text` with every match of `pattern` replaced; the pattern must match, or the test would pass
+    on an SSD it never edited. Patterns allow for the exporter's line breaks between elements."""
+    text, count = re.subn(pattern, replacement, text)
+    assert count, pattern
+    return text
+
+
 def test_malformed_ssd(fmu_paths, tmp_path):
     folder = ssp_copy(tmp_path)
     (folder / "SystemStructure.ssd").write_text("<ssd:SystemStructureDescription xmlns:ssd='x'><unclosed")
@@ -81,9 +90,11 @@ def test_malformed_ssd(fmu_paths, tmp_path):
 def test_an_ssd_against_its_schema_names_the_first_problem(fmu_paths, tmp_path):
     folder = ssp_copy(tmp_path)
     ssd = folder / "SystemStructure.ssd"
-    ssd.write_text(ssd.read_text().replace("<ssd:System ", '<ssd:System bogus="1" ', 1))
+    text = ssd.read_text()
+    line = text[:text.index("<ssd:System ")].count("\n") + 1  # where the edit lands, as the schema check counts
+    ssd.write_text(text.replace("<ssd:System ", '<ssd:System bogus="1" ', 1))
     one_line_error(harness("run", str(folder), "--stop", "1", "--step", "0.1", "--out", str(tmp_path / "x.csv")),
-                   "Failed to validate SystemStructure.ssd: (line 6, column 0): Element "
+                   f"Failed to validate SystemStructure.ssd: (line {line}, column 0): Element "
                    "'{http://ssp-standard.org/SSP1/SystemStructureDescription}System', attribute 'bogus': "
                    "The attribute 'bogus' is not allowed)")
 
@@ -410,14 +421,11 @@ def test_ssd_features_the_master_does_not_carry_out_are_refused(fmu_paths, tmp_p
     for Model Exchange: one line naming it, never a run that ignores it."""
     folder = ssp_copy(tmp_path)
     ssd = folder / "SystemStructure.ssd"
-    text = ssd.read_text()
     edits = {"start": ('startTime="0" stopTime="10.0"', 'startTime="5" stopTime="5.05"'),
-             "unit": ('<ssv:Parameter name="l0"><ssv:Real value="1.5"/>',
-                      '<ssv:Parameter name="l0"><ssv:Real value="1500" unit="mm"/>'),
-             "implementation": ('<ssd:Component name="left" ', '<ssd:Component name="left" implementation="ModelExchange" ')}
-    old, new = edits[case]
-    assert old in text
-    ssd.write_text(text.replace(old, new))
+             "unit": (r'(<ssv:Parameter name="l0">\s*<ssv:Real) value="1.5"', r'\1 value="1500" unit="mm"'),
+             "implementation": ('<ssd:Component name="left" ',
+                                '<ssd:Component name="left" implementation="ModelExchange" ')}
+    ssd.write_text(ssd_edited(ssd.read_text(), *edits[case]))
     words = {"start": "startTime = 5", "unit": "parameter 'l0' is given in 'mm'",
              "implementation": "'ModelExchange'"}[case]
     one_line_error(harness("run", str(folder), "--stop", "1", "--step", "0.1", "--out", str(tmp_path / "x.csv")), words)
@@ -428,9 +436,8 @@ def test_an_ssv_enumeration_names_its_item(fmu_paths, tmp_path):
     """SSP gives an enumeration's value as its item's name: euler runs as euler (its work counts show it)."""
     folder = ssp_copy(tmp_path)
     ssd = folder / "SystemStructure.ssd"
-    text = ssd.read_text()
-    ssd.write_text(text.replace('<ssv:Parameter name="solver"><ssv:Integer value="5"/>',
-                                '<ssv:Parameter name="solver"><ssv:Enumeration value="euler"/>'))
+    ssd.write_text(ssd_edited(ssd.read_text(), r'(<ssv:Parameter name="solver">\s*)<ssv:Integer value="5" ?/>',
+                              r'\1<ssv:Enumeration value="euler"/>'))
     result = harness("run", str(folder), "--stop", "0.1", "--step", "0.1", "--out", str(tmp_path / "x.csv"))
     assert result.returncode == 0, result.stderr
     header, *rows = (tmp_path / "x.csv").read_text().splitlines()

@@ -3,6 +3,7 @@ check accepts and that runs to the same bits as the scene itself, power bonds an
 is looked at as the scene is (camera, traces, description)."""
 from __future__ import annotations
 
+import json
 import zipfile
 
 import numpy as np
@@ -12,7 +13,7 @@ from harness.cli import main
 from harness.cosim.master import MasterOptions, run_system
 from harness.cosim.system import load_system
 from harness.errors import HarnessError
-from harness.fmi.fmus import PROJECT_ROOT
+from harness.fmi.fmus import PROJECT_ROOT, build_dir
 
 SCENES = PROJECT_ROOT / "scenes"
 
@@ -162,3 +163,40 @@ def test_the_harness_annotation_decides_and_the_others_stand_in_for_it(fmu_paths
     information.set("fixedStepSize", "fast")
     with pytest.raises(HarnessError, match="SimulationInformation fixedStepSize = 'fast' is not a number"):
         load_system(rezipped(tmp_path / "bad.ssp", files, etree.tostring(root)))
+
+
+def test_the_builds_coupled_scene_is_its_scene_file_exported(fmu_paths, tmp_path, capsys):
+    """build/scenes/coupled_pendulums.ssp (and the folder beside it) carries the step, the stop time and
+    the power bonds of scenes/coupled_pendulums.json, so that a run given neither --step nor --stop
+    writes the scene file's rows, bond energy included."""
+    from lxml import etree
+    scene = json.loads((SCENES / "coupled_pendulums.json").read_text())
+    archive = build_dir() / "scenes" / "coupled_pendulums.ssp"
+    with zipfile.ZipFile(archive) as members:
+        files = {name: members.read(name) for name in members.namelist() if not name.endswith("/")}
+    folder = build_dir() / "scenes" / "coupled_pendulums"
+    assert {name: (folder / name).read_bytes() for name in files} == files  # the folder is the archive unpacked
+    root = etree.fromstring(files["SystemStructure.ssd"])
+    assert float(root.find("ssd:DefaultExperiment", NAMESPACES).get("stopTime")) == scene["stop"]
+    own = root.find("ssd:System/ssd:Annotations/ssc:Annotation[@type='org.pendulum-harness.step']/Step", NAMESPACES)
+    assert float(own.get("stepSize")) == scene["step"]
+    bonds = root.find("ssd:System/ssd:Annotations/ssc:Annotation[@type='org.pendulum-harness.bonds']/Bonds",
+                      NAMESPACES)
+    # a bond of the scene file names force, velocity and position as component.variable, one component
+    assert [[f"{b.get('component')}.{b.get(k)}" for k in ("force", "velocity", "position")] for b in bonds] == \
+        scene["bonds"]
+    for source in (folder, archive):
+        with load_system(source) as system:
+            assert (system.stop, system.step) == (scene["stop"], scene["step"])
+            assert [[f"{b.component}.{b.force}", f"{b.component}.{b.velocity}", f"{b.component}.{b.position}"]
+                    for b in system.bonds] == scene["bonds"]
+    steps = round(scene["stop"] / scene["step"])
+    for extra in ([], ["--energy-correction"]):  # the second puts the bonds to work
+        lines, rows = {}, {}
+        for name, source in (("scene", SCENES / "coupled_pendulums.json"), ("ssp", archive)):
+            out = tmp_path / f"{name}.csv"
+            assert main(["run", str(source), "--out", str(out), "--quiet", *extra]) == 0
+            lines[name], rows[name] = capsys.readouterr().out.replace(str(out), "OUT"), out.read_text()
+        assert lines["ssp"] == lines["scene"] and f"{steps} macro steps of {scene['step']:g} s" in lines["ssp"]
+        assert ("the power bonds created" in lines["ssp"]) == bool(extra)
+        assert rows["ssp"] == rows["scene"] and len(rows["ssp"].splitlines()) == 1 + steps + 1  # header, t = 0, steps

@@ -597,7 +597,8 @@ def assert_finite_when_ok(fmu: FmuInstance) -> None:
 
 # ---- SSP features the harness does not carry out, and files it must not read -----------------
 
-FIRST_CONNECTION = '<ssd:Connection startElement="left" startConnector="x" endElement="spring" endConnector="a_x"/>'
+# as the exporter writes it (ElementTree puts a space before "/>")
+FIRST_CONNECTION = '<ssd:Connection startElement="left" startConnector="x" endElement="spring" endConnector="a_x" />'
 FIRST_VALUES_END = "</ssd:ParameterValues>"
 SSM = "http://ssp-standard.org/SSP1/SystemStructureParameterMapping"
 SSD_EDITS = {

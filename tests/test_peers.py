@@ -1,5 +1,5 @@
-"""The spring scenes (the coupled pendulums as the build packs them, the others written by
-`harness export`) and each FMU alone in independent importers: libcosim and ecos (PyPI), Maestro
+"""The spring scenes written by `harness export` (the coupled pendulums as the build exports them)
+and each FMU alone in independent importers: libcosim and ecos (PyPI), Maestro
 (Maven Central) and OMSimulator (PyPI, where it installs). All couple by Jacobi with a one-step
 delay, i.e. inputs held from the previous communication point: with the harness set to the same
 semantics (--algorithm jacobi --extrapolation hold) the results agree to rounding."""
@@ -44,7 +44,7 @@ SCENES = ("coupled_pendulums", *EXPORTED)
 
 @pytest.fixture(scope="module")
 def archives(fmu_paths, tmp_path_factory) -> dict[str, Path]:
-    """The coupled scene's SSP as the build packs it, and the other spring scenes exported."""
+    """The coupled scene's SSP as the build exports it, and the other spring scenes exported here."""
     from harness.cosim.ssp_export import write_ssp
     folder = tmp_path_factory.mktemp("exported")
     out = {"coupled_pendulums": build_dir() / "scenes" / "coupled_pendulums.ssp"}
