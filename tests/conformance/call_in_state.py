@@ -1,9 +1,11 @@
-"""Brings fresh instances of an FMU into one state of the FMI 2.0 state machine and calls one
-function on each: prints {function: [status, last log message]} as JSON.
+"""Brings fresh instances of an FMU into each given state of the FMI 2.0 state machine and calls one
+function on each: prints, per state as it is done, one line of JSON {"state": STATE, "outcome":
+{function: [status, last log message]}}.
 
-    call_in_state.py FMU UNZIPDIR {CS|ME} STATE
+    call_in_state.py FMU UNZIPDIR {CS|ME} STATE [STATE ...]
 
-Run as a child process, so that a crash fails only this group of cases."""
+Run as a child process, so that a crash fails only this FMU's and interface's cases (those of the states
+not printed); one process for all of an interface's states, as starting one costs more than its calls."""
 import ctypes
 import json
 import sys
@@ -12,11 +14,11 @@ from fmpy.fmi2 import fmi2EventInfo
 
 from harness.fmi.fmu_instance import FmuInstance
 
-path, unzipdir, kind, state = sys.argv[1:5]
+path, unzipdir, kind, *states = sys.argv[1:]
 D, I, P = ctypes.c_double, ctypes.c_int, ctypes.c_void_p
 
 
-def prepare() -> FmuInstance:
+def prepare(state: str) -> FmuInstance:
     fmu = FmuInstance(path, kind=kind, unzipdir=unzipdir)
     names = fmu.variables
     if state == "stepFailed":  # a configuration whose first step is discarded
@@ -102,11 +104,12 @@ def calls(fmu: FmuInstance) -> dict:
     }
 
 
-outcome = {}
-for name in calls(prepare()):
-    fmu = prepare()  # a fresh instance per call: no call sees another's effect
-    before = len(fmu.log.messages)
-    result = calls(fmu)[name]()
-    messages = fmu.log.messages[before:]
-    outcome[name] = [result, messages[-1].text if messages else ""]
-print(json.dumps(outcome))
+for state in states:
+    outcome = {}
+    for name in calls(prepare(state)):
+        fmu = prepare(state)  # a fresh instance per call: no call sees another's effect
+        before = len(fmu.log.messages)
+        result = calls(fmu)[name]()
+        messages = fmu.log.messages[before:]
+        outcome[name] = [result, messages[-1].text if messages else ""]
+    print(json.dumps({"state": state, "outcome": outcome}), flush=True)
