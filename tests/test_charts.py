@@ -72,6 +72,13 @@ def drawn():
     return figures()
 
 
+@pytest.fixture(scope="module")
+def svgs(drawn):
+    """Each chart's SVG with its tooltips, as the report embeds it: made once (half a minute) for the tests that
+    read it and the one that loads it in a browser."""
+    return {name: svg_of(figure, tips) for name, figure, tips, _ in drawn}
+
+
 def visible_axes(figure):
     return [ax for ax in figure.axes if ax.axison]
 
@@ -131,9 +138,9 @@ def titles(svg: str) -> list[str]:
     return re.findall(r"<title>([^<]*)</title>", svg)
 
 
-def test_every_point_has_a_tooltip_naming_method_and_setting(drawn):
+def test_every_point_has_a_tooltip_naming_method_and_setting(drawn, svgs):
     for name, figure, tips, points in drawn:
-        svg = svg_of(figure, tips)
+        svg = svgs[name]
         found = titles(svg)
         assert len(found) == len(tips.texts) > 0, name
         assert not re.search(r"(href|src)\s*=\s*[\"']https?:|url\(\s*[\"']?https?:|@import", svg), name
@@ -185,14 +192,14 @@ def hover(url: str) -> dict:
     return json.loads(result.stdout)
 
 
-def test_the_report_shows_every_chart_with_a_tooltip_over_every_point(drawn, tmp_path):
+def test_the_report_shows_every_chart_with_a_tooltip_over_every_point(drawn, svgs, tmp_path):
     """Every chart's SVG embedded as the demo report embeds it, in Chromium: at each point's centre the
     browser finds an element with a tooltip (nothing without one drawn over it), and the page loads
     local files only."""
     stems = []
     for name, figure, tips, _ in drawn:
         stem = name.replace(" ", "-")
-        (tmp_path / f"{stem}.svg").write_text(svg_of(figure, tips))
+        (tmp_path / f"{stem}.svg").write_text(svgs[name])
         stems.append((stem, sum("-tip" in gid for gid in tips.texts)))
     page = write_index(Report([Section("Charts", "drawn", True,
                                        "".join(interactive_chart(stem, stem) for stem, _ in stems))]), tmp_path, 0.0)
