@@ -89,11 +89,19 @@ def test_derive_refuses_a_bad_file_with_exit_code_2_and_leaves_nothing(tmp_path)
     assert list(scratch.iterdir()) == []
 
 
-def test_derive_builds_a_valid_fmu_that_moves_as_the_numeric_route_says(tmp_path):
-    from fmpy.validation import validate_fmu
-    path = write(tmp_path, CART_PENDULUM)
-    result = subprocess.run([sys.executable, "-m", "harness", "derive", str(path), "--out", str(tmp_path)],
+@pytest.fixture(scope="module")
+def derived_cart(tmp_path_factory) -> tuple[subprocess.CompletedProcess, Path]:
+    """`harness derive` of CART_PENDULUM, run once (half a minute): (the command's result, its folder)."""
+    folder = tmp_path_factory.mktemp("derived-cart")
+    path = write(folder, CART_PENDULUM)
+    result = subprocess.run([sys.executable, "-m", "harness", "derive", str(path), "--out", str(folder)],
                             capture_output=True, text=True)
+    return result, folder
+
+
+def test_derive_builds_a_valid_fmu_that_moves_as_the_numeric_route_says(derived_cart):
+    from fmpy.validation import validate_fmu
+    result, tmp_path = derived_cart
     assert result.returncode == 0, result.stderr
     fmu = tmp_path / "CartPendulumTest.fmu"
     assert validate_fmu(str(fmu)) == []
@@ -123,9 +131,11 @@ def test_every_object_proves_itself(fmu_paths, name):
     assert not failed, failed
 
 
-def test_the_proof_finds_an_fmu_that_does_not_follow_its_object_file(tmp_path):
+def test_the_proof_finds_an_fmu_that_does_not_follow_its_object_file(derived_cart, tmp_path):
     """An FMU derived from one potential but carrying a file with another (gravity 1 % stronger)."""
-    fmu = derive_fmu(write(tmp_path, CART_PENDULUM), tmp_path / "out").path
+    result, folder = derived_cart
+    assert result.returncode == 0, result.stderr
+    fmu = folder / "CartPendulumTest.fmu"
     changed = read_object_file(write(tmp_path, CART_PENDULUM.replace("-m*g*l*cos(phi)", "-1.01*m*g*l*cos(phi)"),
                                      "changed.toml"))
     proof = numeric_route_agreement(fmu, changed, samples=3)
