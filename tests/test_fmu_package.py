@@ -125,18 +125,31 @@ def _plain_build(unzipped_folder: str, name: str, target: Path) -> Path:
     return library
 
 
+@pytest.fixture(scope="module")
+def plain_builds(unzipped, tmp_path_factory):
+    """plain_builds(name) -> the FMU's `_plain_build`, compiled once per module (ten seconds each): the
+    symbol check and the two-FMU process load the same binaries."""
+    built = {}
+
+    def build(name: str) -> Path:
+        if name not in built:
+            built[name] = _plain_build(unzipped[name], name, tmp_path_factory.mktemp(f"plain-{name}"))
+        return built[name]
+    return build
+
+
 @pytest.mark.parametrize("name", FMU_NAMES)
-def test_sources_compiled_plainly_keep_internal_names_private(fmu_paths, unzipped, tmp_path, name):
+def test_sources_compiled_plainly_keep_internal_names_private(plain_builds, name):
     """Without the project's build flags too, and warning-free at -Wall -Wextra -Wsign-conversion: only
     the fmi2 functions are exported."""
-    library = _plain_build(unzipped[name], name, tmp_path)
+    library = plain_builds(name)
     symbols = subprocess.run(["nm", "-D", "--defined-only", str(library)], capture_output=True, text=True,
                              check=True).stdout.split("\n")
     exported = [line.split()[-1] for line in symbols if line.strip()]
     assert all(s.startswith("fmi2") for s in exported), [s for s in exported if not s.startswith("fmi2")]
 
 
-def test_two_plainly_compiled_fmus_in_one_process_with_global_symbols(fmu_paths, unzipped, tmp_path):
+def test_two_plainly_compiled_fmus_in_one_process_with_global_symbols(fmu_paths, unzipped, plain_builds, tmp_path):
     """Loaded RTLD_GLOBAL one after the other (as some importers do), each FMU still calls its own
     internals: the double pendulum's outer mass moves as it does from the project's own binary."""
     import ctypes
@@ -144,7 +157,7 @@ def test_two_plainly_compiled_fmus_in_one_process_with_global_symbols(fmu_paths,
     for name in ("SimplePendulum", "DoublePendulum"):
         folder = tmp_path / name
         shutil.copytree(unzipped[name], folder)
-        libraries[name] = _plain_build(str(folder), name, folder / "binaries" / "linux64")
+        libraries[name] = Path(shutil.copy(plain_builds(name), folder / "binaries" / "linux64" / f"{name}.so"))
     handles = [ctypes.CDLL(str(libraries[n]), mode=ctypes.RTLD_GLOBAL) for n in ("SimplePendulum", "DoublePendulum")]
     assert handles
     rebuilt = simulate(fmu_paths["DoublePendulum"], 1.0, 0.1, unzipdir=str(tmp_path / "DoublePendulum"))
