@@ -1,6 +1,7 @@
 """The right-hand sides, positions and energies of all three pendulums against an independent
 SymPy Euler-Lagrange derivation from T and U (harness.objects.thesis.lagrange), at random states, parameters and
-forces, read through Model Exchange."""
+forces, read through Model Exchange; and the scipy peers' hand-coded equations against the same derivation (here,
+so that one test process derives the double pendulum once: it takes half a minute)."""
 from __future__ import annotations
 
 import ctypes
@@ -10,6 +11,7 @@ import numpy as np
 import pytest
 import sympy as sp
 
+from harness.objects.thesis.equations import STATES, Pendulum
 from harness.objects.thesis.lagrange import MODELS, derived_model, g, random_point
 
 @pytest.mark.parametrize("name", list(MODELS))
@@ -46,3 +48,19 @@ def test_thesis_misprint_in_5_35_would_be_caught():
     lagrange_rhs2 = m2 * s2 * l1 * w1 ** 2 * sp.sin(phi1 - phi2) - m2 * s2 * g * sp.sin(phi2)
     assert sp.simplify(corrected - lagrange_rhs2 / (m1 * l1 ** 2)) == 0
     assert sp.simplify(printed - lagrange_rhs2 / (m1 * l1 ** 2)) != 0
+
+
+@pytest.mark.parametrize("name", list(MODELS))
+def test_the_hand_coded_equations_match_the_sympy_derivation(name):
+    names, function, positions, q, qd = derived_model(name)
+    rng = np.random.default_rng(7)
+    for _ in range(40):
+        values = random_point(name, rng)
+        values.update(F_x=0.0, F_y=0.0)
+        pendulum = Pendulum(name, values, [values[s] for s in STATES[name]])
+        expected = function(*[values[n] for n in names])
+        got = pendulum.rhs(0.0, pendulum.start)
+        n = len(q)
+        assert np.allclose(got[n:], expected[:n], rtol=1e-11, atol=1e-11)
+        tip = pendulum.outer_mass(np.array([pendulum.start]))[0]
+        assert np.allclose(tip, expected[-2:], rtol=1e-12, atol=1e-12)

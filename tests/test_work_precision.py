@@ -13,7 +13,7 @@ from scipy.integrate import solve_ivp
 from harness.cli import main
 from harness.fmi.methods import ADAPTIVE, IMPLICIT
 from harness.objects.thesis.equations import OUTER_MASS, STATES, Pendulum
-from harness.objects.thesis.lagrange import derived_model, random_point
+from harness.objects.thesis.lagrange import derived_model
 from harness.objects.thesis.reference import exact_simple_pendulum, slope, tight_reference
 from harness.studies.work_precision import (FIXED_STEP, ORDER, PENDULUMS, REFERENCE_SUBSTEPS, Point, pareto_front,
                                             read_csv, reference_for, settings, work_precision)
@@ -160,22 +160,6 @@ def test_cvode_errors_are_measured_like_ours(sweep, fmu_paths):
     listed = next(p for p in sweep[1] if p.object == "SimplePendulum" and p.method == "fmpy-CVode" and p.tol == 1e-8)
     assert listed.error == pytest.approx(error, rel=1e-9)
     assert listed.rhs_evals == result["n_rhs"][-1] > 1000  # one evaluation at least per output point
-
-
-@pytest.mark.parametrize("name", PENDULUMS)
-def test_the_hand_coded_equations_match_the_sympy_derivation(name):
-    names, function, positions, q, qd = derived_model(name)
-    rng = np.random.default_rng(7)
-    for _ in range(40):
-        values = random_point(name, rng)
-        values.update(F_x=0.0, F_y=0.0)
-        pendulum = Pendulum(name, values, [values[s] for s in STATES[name]])
-        expected = function(*[values[n] for n in names])
-        got = pendulum.rhs(0.0, pendulum.start)
-        n = len(q)
-        assert np.allclose(got[n:], expected[:n], rtol=1e-11, atol=1e-11)
-        tip = pendulum.outer_mass(np.array([pendulum.start]))[0]
-        assert np.allclose(tip, expected[-2:], rtol=1e-12, atol=1e-12)
 
 
 @pytest.mark.parametrize("name", PENDULUMS)
