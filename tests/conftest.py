@@ -23,10 +23,14 @@ ELEMENTS = tuple(ELEMENT_MOTION)
 
 # The files that take a worker a minute or more (their shared set-up: the demo, the sanitizer build, the atlas),
 # longest first. Run first (./run test keeps the collection order: --no-loadscope-reorder), they leave the many
-# short files to even out the workers' ends; last, one of them would keep a worker busy while the others idle.
-LONGEST_FILES = ("test_docs_measurements.py", "test_memory_safety.py", "test_docs.py", "test_demo.py", "test_stability.py", "test_planner.py",
-                 "test_work_precision_objects.py", "test_work_precision.py", "test_hostile.py", "test_cli.py",
-                 "test_registry.py", "test_chaos_plan.py")
+# short files to even out the workers' ends; last, one of them would keep a worker busy while the others idle
+# (the live view's and the WebAssembly files, last by name, did).
+LONGEST_FILES = ("test_docs_measurements.py", "test_memory_safety.py", "test_docs.py", "test_demo.py",
+                 "test_work_precision_objects.py", "test_fmu_package.py", "test_hostile.py", "test_view.py",
+                 "test_work_precision.py", "test_registry.py", "test_charts.py", "test_checkers.py",
+                 "test_platforms.py", "test_stability.py", "test_wasm.py", "test_chaos_plan.py", "test_peers.py",
+                 "test_objects.py", "test_physics.py", "test_broken_input.py", "test_conformance.py",
+                 "test_planner.py", "test_cli.py")
 
 
 def pytest_configure(config) -> None:
