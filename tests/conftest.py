@@ -1,5 +1,6 @@
 from __future__ import annotations
 
+import fcntl
 import os
 import shutil
 import subprocess
@@ -45,6 +46,15 @@ def pytest_collection_modifyitems(session, config, items) -> None:
     items.sort(key=lambda item: rank.get(item.path.name, len(rank)))  # stable: the others keep their order
 
 
+def shared_folder(tmp_path_factory, name: str) -> Path:
+    """A folder of this test run that its workers share (beside their own temporary folders)."""
+    run = os.environ.get("PYTEST_XDIST_TESTRUNUID")
+    base = tmp_path_factory.getbasetemp()
+    folder = base.parent / f"{name}-{run}" if run else base / name
+    folder.mkdir(exist_ok=True)
+    return folder
+
+
 @pytest.fixture(scope="session", autouse=True)
 def temporary_files(tmp_path_factory):
     """What the test process puts in the temporary folder goes with it: fmpy's simulate_fmu leaves its FMU's
@@ -62,9 +72,7 @@ def temporary_files(tmp_path_factory):
 def wasm_cache(tmp_path_factory):
     """The live view's modules, kept for this test run (its workers and the commands they start share them)
     rather than in the user's cache: a module is compiled once per run, not once per scene and page."""
-    run = os.environ.get("PYTEST_XDIST_TESTRUNUID")
-    base = tmp_path_factory.getbasetemp()
-    folder = base.parent / f"wasm-cache-{run}" if run else base / "wasm-cache"
+    folder = shared_folder(tmp_path_factory, "wasm-cache")
     before = os.environ.get("PENDULUM_WASM_CACHE")
     os.environ["PENDULUM_WASM_CACHE"] = str(folder)
     yield folder
@@ -72,6 +80,21 @@ def wasm_cache(tmp_path_factory):
         del os.environ["PENDULUM_WASM_CACHE"]
     else:
         os.environ["PENDULUM_WASM_CACHE"] = before
+
+
+@pytest.fixture(scope="session")
+def free_fall_ball(tmp_path_factory) -> Path:
+    """The free-fall ball's FMU (tests/method_checks.py), derived once per test run: the taylor and the
+    extrapolation tests run it, and deriving and compiling it takes a quarter of a minute. A worker that finds
+    another deriving it waits for that one."""
+    from method_checks import ball_fmu
+    folder = shared_folder(tmp_path_factory, "free-fall-ball")
+    with open(folder / "lock", "w") as lock:
+        fcntl.flock(lock, fcntl.LOCK_EX)
+        done = folder / "path"
+        if not done.exists():
+            done.write_text(str(ball_fmu(folder)))
+        return Path(done.read_text())
 
 
 @pytest.fixture

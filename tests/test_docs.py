@@ -40,6 +40,8 @@ from harness.processes import run_program
 from harness.reference_pages import REFERENCE, stale_pages
 from harness.view.wasm import WASI_LIBC
 
+from conftest import shared_folder
+
 ROOT = Path(__file__).resolve().parent.parent
 # written by the test run itself (the compatibility record): its commands are checked where they are made
 GENERATED_BY_TESTS = {ROOT / "docs" / "compatibility.md"}
@@ -141,11 +143,7 @@ def _harness_command(line: str) -> str | None:
 
 def ran_commands(tmp_path_factory) -> Path:
     """The folder where this test run notes the harness commands that passed: shared by the test workers."""
-    run = os.environ.get("PYTEST_XDIST_TESTRUNUID")
-    base = tmp_path_factory.getbasetemp()
-    folder = base.parent / f"doc-commands-{run}" if run else base / "doc-commands"
-    folder.mkdir(exist_ok=True)
-    return folder
+    return shared_folder(tmp_path_factory, "doc-commands")
 
 
 def _run_once(block: Block, folder: Path, ran: Path | None) -> None:

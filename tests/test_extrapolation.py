@@ -14,7 +14,7 @@ from harness.fmi.methods import GBS_COLUMNS
 from harness.objects.registry import compliant_names, object_names
 from harness.objects.thesis.reference import exact_simple_pendulum, slope
 
-from method_checks import assert_polynomial_motion_is_exact, ball_fmu, states_under_a_varying_force
+from method_checks import assert_polynomial_motion_is_exact, states_under_a_varying_force
 
 PHI0 = 0.5
 TOLERANCES = (1e-5, 1e-7, 1e-9, 1e-11, 1e-13)
@@ -79,17 +79,12 @@ def test_energy_is_kept_at_the_tolerance(open_fmu):
     assert drift < 1e-7
 
 
-@pytest.fixture(scope="module")
-def ball(tmp_path_factory):
-    return ball_fmu(tmp_path_factory.mktemp("ball"))
-
-
-def test_polynomial_motion_is_exact(ball):
+def test_polynomial_motion_is_exact(free_fall_ball):
     """Free fall (a parabola): the modified midpoint rule is exact on it, so the error estimate is zero and
     one step of 1 s per communication step gives it to rounding, none rejected; under a force ramp (a
     cubic) the extrapolated columns are exact as well."""
     settings = {"solver": "gbs", "tol": 1e-8, "h": 1.0}
-    assert assert_polynomial_motion_is_exact(ball, settings, settings) == (5, 0)
+    assert assert_polynomial_motion_is_exact(free_fall_ball, settings, settings) == (5, 0)
 
 
 @pytest.mark.parametrize("name", object_names())

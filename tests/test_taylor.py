@@ -13,7 +13,7 @@ from harness.fmi.methods import TAYLOR_ORDERS
 from harness.objects.registry import constrained_names, object_names
 from harness.objects.thesis.reference import exact_simple_pendulum, slope
 
-from method_checks import assert_polynomial_motion_is_exact, ball_fmu, states_under_a_varying_force
+from method_checks import assert_polynomial_motion_is_exact, states_under_a_varying_force
 
 PHI0 = 0.5
 
@@ -55,15 +55,10 @@ def test_a_high_order_is_exact_to_rounding_at_large_steps(open_fmu):
     assert fmu.get("n_steps", "n_rhs") == [40, 40 * charge(30)]
 
 
-@pytest.fixture(scope="module")
-def ball(tmp_path_factory):
-    return ball_fmu(tmp_path_factory.mktemp("ball"))
-
-
-def test_polynomial_motion_is_exact_per_step(ball):
+def test_polynomial_motion_is_exact_per_step(free_fall_ball):
     """Free fall is a parabola and, under a force growing linearly in time (its derivative set), a
     cubic: orders 2 and 3 give them exactly with one step per communication step of 1 s."""
-    assert_polynomial_motion_is_exact(ball, {"solver": "taylor", "taylor_order": 2, "tol": 0.0, "h": 1.0},
+    assert_polynomial_motion_is_exact(free_fall_ball, {"solver": "taylor", "taylor_order": 2, "tol": 0.0, "h": 1.0},
                                       {"solver": "taylor", "taylor_order": 3, "tol": 0.0, "h": 1.0})
 
 
