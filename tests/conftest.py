@@ -2,6 +2,7 @@ from __future__ import annotations
 
 import fcntl
 import os
+import pickle
 import shutil
 import subprocess
 import sys
@@ -82,19 +83,41 @@ def wasm_cache(tmp_path_factory):
         os.environ["PENDULUM_WASM_CACHE"] = before
 
 
+def once_per_run(tmp_path_factory, name: str, make) -> bytes:
+    """What `make(folder)` returns, made once per test run for all its workers (a lock: one makes it, the others
+    wait for it and read it); `folder` is for the files it makes."""
+    folder = shared_folder(tmp_path_factory, "made-once")
+    with open(folder / f"{name}.lock", "w") as lock:
+        fcntl.flock(lock, fcntl.LOCK_EX)
+        done = folder / f"{name}.done"
+        if not done.exists():
+            work = folder / name
+            work.mkdir(exist_ok=True)
+            done.write_bytes(make(work))
+        return done.read_bytes()
+
+
 @pytest.fixture(scope="session")
 def free_fall_ball(tmp_path_factory) -> Path:
     """The free-fall ball's FMU (tests/method_checks.py), derived once per test run: the taylor and the
-    extrapolation tests run it, and deriving and compiling it takes a quarter of a minute. A worker that finds
-    another deriving it waits for that one."""
+    extrapolation tests run it, and deriving and compiling it takes a quarter of a minute."""
     from method_checks import ball_fmu
-    folder = shared_folder(tmp_path_factory, "free-fall-ball")
-    with open(folder / "lock", "w") as lock:
-        fcntl.flock(lock, fcntl.LOCK_EX)
-        done = folder / "path"
-        if not done.exists():
-            done.write_text(str(ball_fmu(folder)))
-        return Path(done.read_text())
+    made = once_per_run(tmp_path_factory, "free-fall-ball", lambda folder: str(ball_fmu(folder)).encode())
+    return Path(made.decode())
+
+
+@pytest.fixture(scope="session")
+def derivation(tmp_path_factory):
+    """derivation(name) -> derive() of the registry's object file `name`, derived once per test run: the FMI 3.0
+    descriptions and the peers' equations start from the same derivations (Chain5's takes a quarter of a minute)."""
+    from harness.objects.derivation import derive
+    from harness.objects.object_file import read_object_file
+    from harness.objects.registry import object_file
+
+    def derived(name: str):
+        return pickle.loads(once_per_run(tmp_path_factory, f"derivation-{name}",
+                                         lambda _: pickle.dumps(derive(read_object_file(object_file(name))))))
+    return derived
 
 
 @pytest.fixture

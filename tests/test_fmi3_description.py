@@ -11,21 +11,19 @@ import pytest
 from fmpy import read_model_description
 from lxml import etree
 
-from harness.objects.derivation import derive
 from harness.objects.model_description_fmi3 import model_description_fmi3
-from harness.objects.object_file import read_object_file
-from harness.objects.registry import object_file, object_names
+from harness.objects.registry import object_names
 
 SCHEMA = Path(os.path.dirname(fmpy.__file__)) / "schema" / "fmi3" / "fmi3ModelDescription.xsd"
 
 
 @pytest.fixture(scope="module")
-def descriptions(tmp_path_factory) -> dict[str, Path]:
+def descriptions(tmp_path_factory, derivation) -> dict[str, Path]:
     folder = tmp_path_factory.mktemp("fmi3")
     paths = {}
     for name in object_names():
         path = folder / f"{name}.xml"
-        path.write_text(model_description_fmi3(derive(read_object_file(object_file(name)))))
+        path.write_text(model_description_fmi3(derivation(name)))
         paths[name] = path
     return paths
 

@@ -12,7 +12,6 @@ from scipy.integrate import solve_ivp
 
 from harness.cli import main
 from harness.fmi.events import matched_error
-from harness.objects.derivation import derive
 from harness.objects.motion import ObjectMotion
 from harness.objects.numeric_route import NumericLagrangian
 from harness.objects.object_file import read_object_file
@@ -84,16 +83,16 @@ def test_the_fmu_reference_against_an_independent_method(fmu_paths, name):
 
 
 @pytest.mark.parametrize("name", [n for n in NEW_OBJECTS if n not in constrained_names()])  # no peer for those
-def test_the_peers_equations_are_the_numeric_routes(name):
+def test_the_peers_equations_are_the_numeric_routes(derivation, name):
     """The scipy peers' right-hand side (lambdified from the derivation) against accelerations from
     finite differences of the plainly evaluated T and U, with forces, damping and time."""
     spec = read_object_file(object_file(name))
-    derivation, route = derive(spec), NumericLagrangian(spec)
+    derived, route = derivation(name), NumericLagrangian(spec)
     rng = np.random.default_rng(11)
     n = len(spec.coordinates)
     for _ in range(4):
         values = random_values(spec, rng)
-        motion = ObjectMotion(derivation, values)
+        motion = ObjectMotion(derived, values)
         got = np.array(motion.rhs(values["t"], motion.start))
         expected = route.accelerations(values, values["t"])
         assert np.allclose(got[:n], motion.start[n:], rtol=0, atol=0)
