@@ -22,7 +22,7 @@ import pytest
 from harness.errors import HarnessError
 from harness.fmi.fmu_instance import FmuInstance
 from harness.fmi.fmus import FMU_NAMES, PROJECT_ROOT, build_dir
-from harness.fmi.methods import FREE_MOTION_ONLY, METHODS
+from harness.fmi.methods import FREE_MOTION_ONLY
 from harness.objects.registry import compliant_names
 
 NODE = shutil.which("node")
@@ -114,11 +114,8 @@ def test_every_method_ends_as_on_linux_and_agrees_to_rounding(fmu_paths, tmp_pat
     # only refusals (stormer_verlet where the mass matrix varies; it and taylor where a constraint always acts or
     # acts at the start), for those two a discard where a constraint begins to act (the ball at rest), and one
     # more discard at most (euler's step running away on the elastic double pendulum)
-    # The implicit methods on a compliant contact: their Newton iteration, on a Jacobian without the contact's
-    # stiffness, fails at the first strike, which ends in a discard naming Newton (not steps reported untaken).
-    implicit = {m.name for m in METHODS if m.implicit} if name in compliant_names() else set()
     others = [outcome for start, (outcome, _) in zip(runs, expected)
-              if outcome not in ("ok", "refused") and start.get("solver") not in {*FREE_MOTION_ONLY, *implicit}]
+              if outcome not in ("ok", "refused") and start.get("solver") not in FREE_MOTION_ONLY]
     assert len(others) <= 1, others
     assert sum(outcome == "refused" for outcome, _ in expected) <= 2
 

@@ -84,6 +84,89 @@ static double compliant_force(const ConstraintLaw *law, double g, double rate)
     return force > 0.0 ? force : 0.0; /* never pulling */
 }
 
+#if N_COMPLIANT > 0
+/* A compliant contact that pushes at (t, x): its force's change with the gap and with the gap's rate, its gradient
+ * G and M^-1 G^T (the accelerations a unit force gives), G M^-1 G^T (its inverse effective mass). */
+typedef struct {
+    int index;
+    double dF_dg, dF_drate, gradient[NQ], response[NQ], inverse_mass;
+} Stiffness;
+
+/* The compliant contacts that push at (t, x), into s; how many (0 also where the mass matrix is not positive
+ * definite). With a horizon (peak >= 0), each contact that overlaps or closes within it (at its present rate), at
+ * the depth where it will stop: where the kinetic energy of its approach, mu g'^2 / 2 with mu = 1 / (G M^-1 G^T), is
+ * stored as k depth^(p+1) / (p+1) (its damping left out, which only shortens that). */
+static int compliant_stiffness(const ModelConst *c, double t, const double *x, double peak, Stiffness *s)
+{
+    Geometry geo;
+    double L[NQ * NQ];
+    int i, n = 0, factored = 0;
+    geometry_at(c, t, x, &geo);
+    for (i = 0; i < NC; i++) {
+        const ConstraintLaw *law = &c->law[i];
+        double depth;
+        if (!law->compliant) continue;
+        if (peak >= 0.0 ? !(geo.g[i] < 0.0 || (geo.rate[i] < 0.0 && geo.g[i] < CONTACT_GAP - geo.rate[i] * peak))
+                        : compliant_force(law, geo.g[i], geo.rate[i]) <= 0.0)
+            continue;
+        if (!factored) {
+            model_mass(c, t, x, L);
+            if (!cholesky(L, NQ)) return 0;
+            factored = 1;
+        }
+        memcpy(s[n].gradient, geo.G[i], sizeof s[n].gradient);
+        memcpy(s[n].response, geo.G[i], sizeof s[n].response);
+        cholesky_solve(L, NQ, s[n].response);
+        s[n].inverse_mass = dot(geo.G[i], s[n].response);
+        depth = geo.g[i] < 0.0 ? -geo.g[i] : 0.0; /* F = k depth^p (1 - damping g'), depth = -g */
+        if (peak >= 0.0 && geo.rate[i] < 0.0)
+            depth = pow(pow(depth, law->exponent + 1.0) + (law->exponent + 1.0) * geo.rate[i] * geo.rate[i] /
+                                                               (2.0 * law->stiffness * s[n].inverse_mass),
+                        1.0 / (law->exponent + 1.0));
+        s[n].index = i;
+        s[n].dF_dg = -law->stiffness * law->exponent * pow(depth, law->exponent - 1.0) *
+                     (peak >= 0.0 ? 1.0 : 1.0 - law->damping * geo.rate[i]);
+        s[n].dF_drate = -law->stiffness * pow(depth, law->exponent) * law->damping;
+        n++;
+    }
+    return n;
+}
+
+#if N_STATES != 2 * NQ
+#error "an object with constraints has its coordinates and their velocities as states"
+#endif
+void compliant_jacobian(const ModelConst *c, double t, const double *x, double *J)
+{
+    Stiffness s[NC];
+    const int n = compliant_stiffness(c, t, x, -1.0, s);
+    int k, a, b;
+    for (k = 0; k < n; k++)
+        for (a = 0; a < NQ; a++)
+            for (b = 0; b < NQ; b++) {
+                J[(NQ + a) * N_STATES + b] += s[k].response[a] * s[k].dF_dg * s[k].gradient[b];
+                J[(NQ + a) * N_STATES + NQ + b] += s[k].response[a] * s[k].dF_drate * s[k].gradient[b];
+            }
+}
+
+int compliant_frequency(const ModelConst *c, double t, const double *x, double horizon, double *omega)
+{
+    Stiffness s[NC];
+    const int n = compliant_stiffness(c, t, x, horizon, s);
+    double sum = 0.0, largest = 0.0;
+    int k, stiffest = -1;
+    for (k = 0; k < n; k++) {
+        const double squared = -s[k].dF_dg * s[k].inverse_mass;
+        sum += squared;
+        if (squared > largest) {
+            largest = squared;
+            stiffest = s[k].index;
+        }
+    }
+    *omega = sqrt(sum);
+    return stiffest;
+}
+#endif
+
 /* Solves (G_S M^-1 G_S^T) P = r for the constraints in set (m of them, L the factor of M) and leaves
  * M^-1 G_S^T P in dv; 0 where the constraints are dependent. */
 static int constrained_response(const double *L, const Geometry *geo, const int *set, int m, double *r, double *dv)

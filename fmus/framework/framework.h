@@ -318,6 +318,17 @@ INTERNAL void model_mass(const ModelConst *c, double t, const double *x, double 
  * wanted) receives every constraint's force. 0 where the constraints are dependent. */
 INTERNAL int constraint_forces(const ModelConst *c, int32_t active, double t, const double *x, double *dx,
                                double *lambda);
+#if N_COMPLIANT > 0
+/* constraints.c. The compliant contacts' part of J = df/dx at (t, x), added to J (row-major, N_STATES square): each
+ * pushing contact's force changes with its gap and the gap's rate, M^-1 G^T dF/dg G and M^-1 G^T dF/dg' G (the
+ * changes of G and M along the motion left out, small against the stiffness). */
+INTERNAL void compliant_jacobian(const ModelConst *c, double t, const double *x, double *J);
+/* An upper bound of the angular frequency the compliant contacts will oscillate at from (t, x), into omega: the root
+ * of the sum over the contacts that overlap, or close within `horizon` at their present rate, of dF/d(depth)
+ * G M^-1 G^T at the depth where each will stop (the trace of M^-1 K, at least its largest eigenvalue; their damping left out), 0 where none does.
+ * Returns the stiffest contact's index, or -1. */
+INTERNAL int compliant_frequency(const ModelConst *c, double t, const double *x, double horizon, double *omega);
+#endif
 /* Event indicators: the gap of an inactive or compliant constraint, the force of an active one, 1 for a
  * bilateral one; u the inputs (NULL: none). Returns whether it solved for the forces (an evaluation). */
 INTERNAL int constraint_indicators(const ModelConst *c, int32_t active, double t, const double *x, const double *u,

@@ -352,35 +352,17 @@ static int explicit_stage(const ButcherTableau *tab, int i)
  * and far off at large ones, where it kept the trapezoid rule from converging). An explicit first stage
  * (the trapezoid rule's) is f at the step's start, evaluated once. Returns 0 (x unchanged) when the
  * Jacobian is not finite or, setting f->unconverged, when the iteration does not converge. */
-static int implicit_step(RightHandSide *f, const Evaluator *e, int mode, const ButcherTableau *tab, double t,
-                         double h, double *x, double (*Z)[STATE_SLOTS])
+/* Newton's iteration for the stage increments Z of an implicit step from (t, x) on the Jacobian J; F holds the
+ * explicit first stage, where the method has one. Returns whether it converged. */
+static int newton_solve(RightHandSide *f, const Evaluator *e, int mode, const ButcherTableau *tab, double t, double h,
+                        const double *x, const double *J, double (*F)[STATE_SLOTS], double (*Z)[STATE_SLOTS])
 {
     enum { DIM = IMPLICIT_MAX_STAGES * STATE_SLOTS };
     const int s = tab->stages, dim = s * N_STATES;
-    double J[STATE_SLOTS * STATE_SLOTS], newton[DIM * DIM], slope[STATE_SLOTS];
-    double F[IMPLICIT_MAX_STAGES][STATE_SLOTS], r[DIM], y[STATE_SLOTS], u[INPUT_SLOTS];
-    double previous = INFINITY;
     const int explicit_first = explicit_stage(tab, 0);
+    double newton[DIM * DIM], r[DIM], y[STATE_SLOTS];
+    double previous = INFINITY;
     int pivot[DIM], i, j, p, q, iteration;
-    if (mode == FORCES_VARY)
-        for (i = 0; i < N_INPUTS; i++) u[i] = e->u0[i] + (t - e->t0) * e->du[i];
-    else if (mode == FORCES_HELD)
-        for (i = 0; i < N_INPUTS; i++) u[i] = e->u0[i];
-    if (f->kept_jacobian && f->kept_jacobian->valid && t == f->kept_jacobian->t &&
-        memcmp(x, f->kept_jacobian->x, N_STATES * sizeof(double)) == 0) {
-        memcpy(J, f->kept_jacobian->J, sizeof J);
-    } else {
-        f->jacobian(f->context, t, x, mode == FORCES_NONE ? NULL : u, J, slope);
-        f->jacobians++;
-        f->evaluations++; /* the Jacobian's columns need f(t, x) itself once */
-        if (f->kept_jacobian) {
-            f->kept_jacobian->valid = 1;
-            f->kept_jacobian->t = t;
-            memcpy(f->kept_jacobian->x, x, N_STATES * sizeof(double));
-            memcpy(f->kept_jacobian->J, J, sizeof J);
-            memcpy(f->kept_jacobian->slope, slope, sizeof slope);
-        }
-    }
     if (first_non_finite(J, N_STATES * N_STATES) >= 0) return 0;
     for (i = 0; i < s; i++)
         for (p = 0; p < N_STATES; p++)
@@ -388,14 +370,7 @@ static int implicit_step(RightHandSide *f, const Evaluator *e, int mode, const B
                 for (q = 0; q < N_STATES; q++)
                     newton[(i * N_STATES + p) * dim + j * N_STATES + q] =
                         (i == j && p == q ? 1.0 : 0.0) - h * tab->a[i][j] * J[p * N_STATES + q];
-    if (explicit_first) {
-        evaluate(e, mode, t, x, F[0]);
-        f->evaluations++;
-    }
-    if (!lu_factor(newton, dim, pivot)) {
-        f->unconverged = 1;
-        return 0;
-    }
+    if (!lu_factor(newton, dim, pivot)) return 0;
     for (iteration = 1; iteration <= NEWTON_MAX_ITERATIONS; iteration++) {
         double norm = 0.0;
         for (i = 0; i < s; i++) {
@@ -418,20 +393,60 @@ static int implicit_step(RightHandSide *f, const Evaluator *e, int mode, const B
                 Z[i][p] += r[i * N_STATES + p];
                 if (!(scaled <= norm) && !isnan(norm)) norm = scaled; /* a NaN stays */
             }
-        if (norm <= NEWTON_TOLERANCE) break;
-        if (!(norm < previous)) { /* no longer shrinking: rounding reached, or diverging */
-            if (norm <= NEWTON_PLATEAU) break;
+        if (norm <= NEWTON_TOLERANCE) return 1;
+        if (!(norm < previous)) return norm <= NEWTON_PLATEAU; /* no longer shrinking: rounding, or diverging */
+        /* Contracting by rate = norm / previous per iteration, the corrections still to come add up to
+         * about norm rate / (1 - rate): small enough, the iteration has converged. */
+        if (previous < INFINITY && norm * norm / (previous - norm) <= NEWTON_TOLERANCE) return 1;
+        previous = norm;
+    }
+    return 0;
+}
+
+static int implicit_step(RightHandSide *f, const Evaluator *e, int mode, const ButcherTableau *tab, double t,
+                         double h, double *x, double (*Z)[STATE_SLOTS])
+{
+    const int s = tab->stages;
+    double J[STATE_SLOTS * STATE_SLOTS], slope[STATE_SLOTS], end_slope[STATE_SLOTS];
+    double F[IMPLICIT_MAX_STAGES][STATE_SLOTS], y[STATE_SLOTS], u[INPUT_SLOTS];
+    int i, p;
+    if (mode == FORCES_VARY)
+        for (i = 0; i < N_INPUTS; i++) u[i] = e->u0[i] + (t - e->t0) * e->du[i];
+    else if (mode == FORCES_HELD)
+        for (i = 0; i < N_INPUTS; i++) u[i] = e->u0[i];
+    if (f->kept_jacobian && f->kept_jacobian->valid && t == f->kept_jacobian->t &&
+        memcmp(x, f->kept_jacobian->x, N_STATES * sizeof(double)) == 0) {
+        memcpy(J, f->kept_jacobian->J, sizeof J);
+        memcpy(slope, f->kept_jacobian->slope, sizeof slope);
+    } else {
+        f->jacobian(f->context, t, x, mode == FORCES_NONE ? NULL : u, J, slope);
+        f->jacobians++;
+        f->evaluations++; /* the Jacobian's columns need f(t, x) itself once */
+        if (f->kept_jacobian) {
+            f->kept_jacobian->valid = 1;
+            f->kept_jacobian->t = t;
+            memcpy(f->kept_jacobian->x, x, N_STATES * sizeof(double));
+            memcpy(f->kept_jacobian->J, J, sizeof J);
+            memcpy(f->kept_jacobian->slope, slope, sizeof slope);
+        }
+    }
+    if (first_non_finite(J, N_STATES * N_STATES) >= 0) return 0;
+    if (explicit_stage(tab, 0)) {
+        evaluate(e, mode, t, x, F[0]);
+        f->evaluations++;
+    }
+    if (!newton_solve(f, e, mode, tab, t, h, x, J, F, Z)) {
+        /* Once more on the Jacobian at the step's end as Euler predicts it: a step into a stiff contact (Hertz's
+         * force grows from zero stiffness at the onset) needs the stiffness there, which the start lacks. */
+        for (p = 0; p < N_STATES; p++) y[p] = x[p] + h * slope[p];
+        f->jacobian(f->context, t + h, y, mode == FORCES_NONE ? NULL : u, J, end_slope);
+        f->jacobians++;
+        f->evaluations++;
+        memset(Z, 0, (size_t)s * sizeof Z[0]);
+        if (!newton_solve(f, e, mode, tab, t, h, x, J, F, Z)) {
             f->unconverged = 1;
             return 0;
         }
-        /* Contracting by rate = norm / previous per iteration, the corrections still to come add up to
-         * about norm rate / (1 - rate): small enough, the iteration has converged. */
-        if (previous < INFINITY && norm * norm / (previous - norm) <= NEWTON_TOLERANCE) break;
-        previous = norm;
-    }
-    if (iteration > NEWTON_MAX_ITERATIONS) {
-        f->unconverged = 1;
-        return 0;
     }
     for (p = 0; p < N_STATES; p++) {
         double sum = tab->d[0] * Z[0][p];
@@ -507,6 +522,44 @@ ENGINE_INLINE int64_t stormer_verlet_loop(RightHandSide *f, int mode, double *x,
     return n;
 }
 #endif
+
+double oscillation_growth(int solver, const RightHandSide *f, double y)
+{
+    double coefficient[TAYLOR_MAX_TERMS], re = 0.0, im = 0.0, power = 1.0;
+    const ButcherTableau *tableau = tableau_of(solver);
+    int n = 0, k;
+    coefficient[0] = 1.0;
+    if (solver == SOLVER_STORMER_VERLET) { /* its eigenvalues on the oscillation: l + 1/l = 2 - y^2 */
+        const double w = y * y - 2.0;
+        return y <= 2.0 ? 1.0 : 0.5 * (w + sqrt(w * w - 4.0));
+    }
+    if (solver == SOLVER_TAYLOR) { /* the series to its order: sum z^k / k! */
+        n = f->taylor_order < TAYLOR_MAX_TERMS - 1 ? f->taylor_order : TAYLOR_MAX_TERMS - 1;
+        for (k = 1; k <= n; k++) coefficient[k] = coefficient[k - 1] / k;
+    } else if (tableau && !tableau->implicit) { /* R(z) = 1 + sum_k z^k b^T A^(k-1) 1 */
+        double v[RK_MAX_STAGES], w[RK_MAX_STAGES];
+        int i, j;
+        n = tableau->stages;
+        for (i = 0; i < n; i++) v[i] = 1.0;
+        for (k = 1; k <= n; k++) {
+            coefficient[k] = 0.0;
+            for (i = 0; i < n; i++) coefficient[k] += tableau->b[i] * v[i];
+            for (i = 0; i < n; i++)
+                for (w[i] = 0.0, j = 0; j < n; j++) w[i] += tableau->a[i][j] * v[j];
+            memcpy(v, w, sizeof v);
+        }
+    } else {
+        return 0.0;
+    }
+    for (k = 0; k <= n; k++, power *= y) { /* i^k cycles through 1, i, -1, -i */
+        const double term = coefficient[k] * power;
+        if (k % 4 == 0) re += term;
+        else if (k % 4 == 1) im += term;
+        else if (k % 4 == 2) re -= term;
+        else im -= term;
+    }
+    return isfinite(re) && isfinite(im) ? hypot(re, im) : INFINITY;
+}
 
 const ButcherTableau *tableau_of(int solver)
 {

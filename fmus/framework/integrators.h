@@ -152,6 +152,11 @@ INTERNAL double integrate_taylor(RightHandSide *f, IntegratorMemory *memory, dou
 INTERNAL double integrate_extrapolation(RightHandSide *f, IntegratorMemory *memory, double *x, double t0,
                                         double t_end, double h_initial, double tol, int check_each);
 
+/* The growth per fixed step of `solver` on an undamped oscillation with h omega = y: |R(i y)| of its stability
+ * function, for the explicit Runge-Kutta methods (from the tableau), the Taylor method (its order from f) and
+ * Stormer-Verlet; 0 for the others (the implicit methods, stable there; the Adams methods and gbs, not covered). */
+#define TAYLOR_MAX_TERMS 64
+INTERNAL double oscillation_growth(int solver, const RightHandSide *f, double y);
 /* The tableau or coefficient set of a solver (NULL where it is the other kind). */
 INTERNAL const ButcherTableau *tableau_of(int solver);
 INTERNAL const AdamsBashforth *adams_bashforth_of(int solver);

@@ -243,6 +243,9 @@ static void jacobian_at(void *context, double t, const double *x, const double *
         seed[j] = 0.0;
         for (i = 0; i < N_STATES; i++) J[i * N_STATES + j] = ddx[i];
     }
+#if N_CONSTRAINTS > 0 && N_COMPLIANT > 0
+    compliant_jacobian(&inst->constants, t, x, J); /* the free equations' J lacks the contacts' stiffness */
+#endif
 }
 
 /* The adaptive methods: rkf45, gbs, and taylor with tol > 0. */
@@ -689,6 +692,53 @@ static Status stopped_at(Instance *inst, const char *function, RightHandSide *f,
     return stopped_short(inst, function, f, solver, t, ta);
 }
 
+#if N_COMPLIANT > 0
+/* How much an oscillation grows over one period at y = h omega with `solver` (over one step where a step is longer). */
+static double period_growth(const EventStepper *e, double y)
+{
+    const double growth = oscillation_growth(e->solver, e->f, y);
+    return growth > 0.0 ? pow(growth, fmax(1.0, 6.283185307179586 / y)) : 0.0;
+}
+
+/* A fixed step of an explicit method must follow the compliant contacts' oscillation: where h omega lies beyond the
+ * method's stability there, every step multiplies it (rk4: for h omega > 2.83) and energy appears from nothing. A
+ * step from x at t (a step's start, or an onset) is refused where the oscillation the contacts that overlap or close
+ * within it will reach would grow more than 2-fold per period: writes why into message and returns 1. */
+static int too_stiff(const EventStepper *e, double t, const double *x, char *message, size_t size)
+{
+    double omega, low = 0.0, high, growth;
+    int k, contact;
+    if (!(oscillation_growth(e->solver, e->f, 1.0) > 0.0)) return 0; /* a method this does not cover */
+    contact = compliant_frequency(&e->inst->constants, t, x, e->hs, &omega);
+    if (contact < 0 || !(omega > 0.0)) return 0;
+    high = e->hs * omega;
+    growth = period_growth(e, high);
+    if (!(growth > 2.0)) return 0;
+    for (k = 0; k < 60; k++) { /* the largest h omega within 2-fold */
+        const double middle = 0.5 * (low + high);
+        if (period_growth(e, middle) > 2.0) high = middle;
+        else low = middle;
+    }
+    snprintf(message, size, "the compliant contact %s at t = %.17g is too stiff for %s at h = %g: its oscillation from there "
+             "(angular frequency up to %g rad/s at full compression) grows %.3g-fold per period, where h at most %.3g keeps it within "
+             "2-fold (or take an implicit or an adaptive method)", CONSTRAINT_NAMES[contact], t,
+             solver_name(e->solver), e->hs, omega, growth, low / omega);
+    return 1;
+}
+
+/* A fixed step from x at ta, which the contacts it meets make too stiff for h (too_stiff): the call ends at ta. */
+static int stiffness_refused(Instance *inst, const char *function, const EventStepper *e, RightHandSide *f, double t,
+                             double ta, const double *x)
+{
+    char message[600];
+    if (e->adaptive || !too_stiff(e, ta, x, message, sizeof message)) return 0;
+    count_work(&inst->s.integrator, f);
+    finish(inst, t, ta - t, ta);
+    log_discard(inst, "%s: %s; stopped there (last successful time %.17g)", function, message, ta);
+    return 1;
+}
+#endif
+
 static Status step_with_events(Instance *inst, const char *function, RightHandSide *f, int solver, double t, double H)
 {
     SimState *s = &inst->s;
@@ -755,6 +805,9 @@ static Status step_with_events(Instance *inst, const char *function, RightHandSi
         double step_end; /* a fixed-step method's step ends here, whatever it finds inside */
         memcpy(x0, x, sizeof x0);
         start_of_step(&e, ta, x0, z0, reuse ? z1 : NULL);
+#if N_COMPLIANT > 0
+        if (stiffness_refused(inst, function, &e, f, t, ta, x)) return STATUS_DISCARD; /* the contacts it meets */
+#endif
         if (e.adaptive) {
             f->single_step = 1;
             tb = adaptive_pass(f, solver, memory, x, ta, tb, e.h, e.tol, 0);
@@ -841,6 +894,9 @@ static Status step_with_events(Instance *inst, const char *function, RightHandSi
                     return STATUS_DISCARD;
                 }
             }
+#if N_COMPLIANT > 0
+            if (stiffness_refused(inst, function, &e, f, t, ta, x)) return STATUS_DISCARD; /* the contact begun */
+#endif
             /* events found again and again where they change nothing: stop rather than spin */
             stalls = memory->n_events == events_seen && s->active_constraints == active_seen ? stalls + 1 : 0;
             events_seen = memory->n_events;

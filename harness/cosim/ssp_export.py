@@ -23,6 +23,7 @@ system uses under `resources/`.
 from __future__ import annotations
 
 import io
+import time
 import zipfile
 import xml.etree.ElementTree as ET
 from pathlib import Path
@@ -180,7 +181,10 @@ def write_ssp(system: System, path: Path) -> None:
     ssd = system_structure(system, sources)
     buffer = io.BytesIO()  # the archive is made whole, then replaces the file at once
     with zipfile.ZipFile(buffer, "w", zipfile.ZIP_DEFLATED) as archive:
-        archive.writestr("SystemStructure.ssd", ssd)
+        entry = zipfile.ZipInfo("SystemStructure.ssd", date_time=time.localtime()[:6])
+        entry.compress_type = zipfile.ZIP_DEFLATED
+        entry.external_attr = 0o644 << 16  # readable by all when unpacked, as the FMUs beside it (writestr: 0600)
+        archive.writestr(entry, ssd)
         for member, fmu in members.items():
             archive.write(fmu, member)
     with written(path, binary=True) as stream:
