@@ -8,6 +8,7 @@ import pytest
 
 from harness.fmi.fmu_instance import OK, FmuInstance
 from harness.fmi.fmus import FMU_NAMES
+from harness.objects.registry import compliant_names
 
 from conftest import ELEMENT_MOTION, ELEMENTS
 
@@ -20,6 +21,8 @@ SOLVERS = ("rk4", "ab4", "rkf45", "nystrom5", "heun", "ab6", "euler", "rk3")
 def run(instance: FmuInstance, name: str, k: int) -> list[float]:
     if name in ELEMENTS:  # ends that move, and differently in each thread
         instance.initialize(**{**ELEMENT_MOTION[name], "b_vx": 0.1 * k})
+    elif name in compliant_names():  # its contacts are too stiff for the fixed steps at this h (which say so)
+        instance.initialize(solver="rkf45", h=0.002, d=0.01 * k)
     else:
         instance.initialize(solver=SOLVERS[k], h=0.002, d=0.01 * k)
     for i in range(200):

@@ -114,8 +114,10 @@ def test_every_method_ends_as_on_linux_and_agrees_to_rounding(fmu_paths, tmp_pat
     # only refusals (stormer_verlet where the mass matrix varies; it and taylor where a constraint always acts or
     # acts at the start), for those two a discard where a constraint begins to act (the ball at rest), and one
     # more discard at most (euler's step running away on the elastic double pendulum)
+    # (on a compliant contact the fixed explicit steps stop where the contact is too stiff for h, in both builds)
     others = [outcome for start, (outcome, _) in zip(runs, expected)
-              if outcome not in ("ok", "refused") and start.get("solver") not in FREE_MOTION_ONLY]
+              if outcome not in ("ok", "refused") and start.get("solver") not in FREE_MOTION_ONLY
+              and name not in compliant_names()]
     assert len(others) <= 1, others
     assert sum(outcome == "refused" for outcome, _ in expected) <= 2
 

@@ -33,9 +33,9 @@ from harness.cosim.algorithms import ALGORITHMS, Exchange
 from harness.cosim.contacts import ENERGY_SMALLEST, ContactSteps, contact_watches
 from harness.cosim.energy import BondedStep, EnergyController, EnergyStepControl, PowerBonds, order_of
 from harness.cosim.controls import Iteration, RetryOnDiscard, StepDoubling, Stepper, Tally
-from harness.cosim.native_core import NativeLoop, input_line_answer, load_core
+from harness.cosim.native_core import NativeLoop, load_core
 from harness.cosim.structure import System
-from harness.cosim.unit import Arena, Unit
+from harness.cosim.unit import Arena, Unit, input_line_answer
 from harness.errors import HarnessError, where
 from harness.fmi.fmu_instance import DISCARD, ERROR, OK, STATUS_NAMES, SharedFmus
 from harness.fmi.results import TimeTable

@@ -7,25 +7,12 @@ import time
 import numpy as np
 
 from harness.fmi.native_calls import FmiCalls, load_library
+from harness.cosim.unit import InputLine
 from harness.interrupts import held
 
 _double_p = ctypes.POINTER(ctypes.c_double)
 _uint_p = ctypes.POINTER(ctypes.c_uint)
 _int_p = ctypes.POINTER(ctypes.c_int)
-
-
-class InputLine(ctypes.Structure):
-    """cosim_core.c's InputLine: how an FMI 3.0 unit that receives inputs asks for them during its step."""
-    _fields_ = [("component", ctypes.c_void_p), ("set_float", ctypes.c_void_p), ("n", ctypes.c_int),
-                ("vrs", _uint_p), ("u", _double_p), ("du", _double_p), ("values", _double_p), ("t0", ctypes.c_double),
-                ("active", ctypes.c_int), ("status", ctypes.c_int)]
-
-
-def input_line_answer() -> int | None:
-    """The address of cosim_core.c's intermediate-update callback that hands an FMI 3.0 unit its inputs'
-    line, or None when the core has not been built (FMI 3.0 receivers then hold their inputs)."""
-    library = load_library("cosim_core")
-    return ctypes.cast(library.cosim_answer_inputs, ctypes.c_void_p).value if library is not None else None
 
 
 class CoreUnit(ctypes.Structure):

@@ -7,11 +7,25 @@ import ctypes
 
 import numpy as np
 
-from harness.cosim.native_core import InputLine
 from harness.cosim.structure import Component, System
 from harness.errors import HarnessError
 from harness.fmi.fmu_instance import ERROR, STATUS_NAMES, AskedInputs, SharedFmus
+from harness.fmi.native_calls import load_library
 from harness.interrupts import held
+
+
+class InputLine(ctypes.Structure):
+    """cosim_core.c's InputLine: how an FMI 3.0 unit that receives inputs asks for them during its step."""
+    _fields_ = [("component", ctypes.c_void_p), ("set_float", ctypes.c_void_p), ("n", ctypes.c_int),
+                ("vrs", ctypes.POINTER(ctypes.c_uint)), ("u", ctypes.POINTER(ctypes.c_double)), ("du", ctypes.POINTER(ctypes.c_double)), ("values", ctypes.POINTER(ctypes.c_double)), ("t0", ctypes.c_double),
+                ("active", ctypes.c_int), ("status", ctypes.c_int)]
+
+
+def input_line_answer() -> int | None:
+    """The address of cosim_core.c's intermediate-update callback that hands an FMI 3.0 unit its inputs'
+    line, or None when the core has not been built (FMI 3.0 receivers then hold their inputs)."""
+    library = load_library("cosim_core")
+    return ctypes.cast(library.cosim_answer_inputs, ctypes.c_void_p).value if library is not None else None
 
 
 class Arena:
