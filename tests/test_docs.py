@@ -58,6 +58,8 @@ NEEDS = {"wasm": (lambda: shutil.which("clang") is not None and WASI_LIBC.exists
                      "Debian's Chromium, Playwright and the WebAssembly compiler are needed (./run installs them as root)"),
          "mujoco": (lambda: importlib.util.find_spec("mujoco") is not None,
                     "MuJoCo is a benchmark peer, not a test dependency (./run bench installs it)"),
+         "heyoka": (lambda: importlib.util.find_spec("heyoka") is not None,
+                    "heyoka is a benchmark peer, not a test dependency (./run bench installs it)"),
          "ecos": (lambda: importlib.util.find_spec("ecospy") is not None and ctypes.util.find_library("tbb") is not None,
                   "ecos needs ecospy and Debian's libtbb12 (./run installs it as root)")}
 

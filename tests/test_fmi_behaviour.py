@@ -436,7 +436,7 @@ def test_a_fixed_step_call_past_the_work_bound_is_refused_at_once(open_fmu, solv
 
 def test_a_failing_step_stays_within_the_work_bound(open_fmu):
     """A step that fails near its end is redone from its last good block only: the evaluations it
-    makes, and one state check per block of 64 substeps, stay within the bound."""
+    makes, and one state check per block of 256 substeps, stay within the bound."""
     fmu = open_fmu("SpringPendulum")
     h, H = 4.6e-8, 0.452
     fmu.initialize(solver="euler", h=h, phi=math.pi, D=1e-9)

@@ -300,9 +300,11 @@ INTERNAL void model_directional(const ModelConst *c, double t, const double *rea
 INTERNAL void model_advance_inputs(double *real, const double *du, double H);
 #if N_STATES > 0
 /* Taylor coefficients 1 ... order of the state (x[i][0] given) at t, u0 (NULL: no forces) and du the
- * inputs and their rates there, w the work series; 0 where the mass matrix is not positive definite. */
-INTERNAL int model_taylor(const ModelConst *c, double t, const double *u0, const double *du, int order,
-                          double (*x)[TAYLOR_SLOTS], double (*w)[TAYLOR_SLOTS]);
+ * inputs and their rates there, w the work series; 0 where the mass matrix is not positive definite. The
+ * arrays do not overlap (restrict): the compiler keeps what it loaded across the stores to the series. */
+INTERNAL int model_taylor(const ModelConst *restrict c, double t, const double *restrict u0,
+                          const double *restrict du, int order, double (*restrict x)[TAYLOR_SLOTS],
+                          double (*restrict w)[TAYLOR_SLOTS]);
 #endif
 
 #if N_CONSTRAINTS > 0

@@ -59,7 +59,7 @@ INTERNAL_DATA_DECLARATION const ButcherTableau TABLEAU_EULER, TABLEAU_MIDPOINT, 
 
 /* Substeps between two checks of the state in a fixed-step pass: a failure costs at most this many
  * substeps redone, and the checks cost one evaluation per block. */
-#define CHECK_BLOCK 64
+#define CHECK_BLOCK 256
 INTERNAL_DATA_DECLARATION const AdamsBashforth AB2, AB3, AB4, AB5, AB6, ABM2, ABM3, ABM4, ABM5, ABM6;
 
 /* A Jacobian kept with the point it was taken at: the implicit methods' trial steps from one point (locating an event

@@ -22,7 +22,7 @@ from harness.fmi.methods import FREE_MOTION_ONLY, GBS_COLUMNS, GBS_SMALLEST_TOL,
 from harness.objects.c_expression import c_expr
 from harness.objects.derivation import Derivation, constraints_beyond_free_motion, total_derivative
 from harness.objects.object_file import ANGLE_LIMIT, FRAMEWORK_PARAMETERS, MAX_EVALUATIONS_PER_CALL, REQUIRE_MARGIN
-from harness.objects.taylor_code import TaylorUnavailable, taylor_code
+from harness.objects.taylor_code import TaylorUnavailable, contract_trigonometry, loop_over_orders, taylor_code
 
 
 @dataclass
@@ -160,8 +160,17 @@ def generate_c(derivation: Derivation) -> GeneratedC:
         body += force_lines
         body += [f"        b{j} += {c_expr(e)};" for j, e in enumerate(force_reduced) if e != 0]
         body.append("    }")
-    taylor = _taylor_function(spec, n, nf, diagonal, pivots, {key: prepared(derivation.M[key]) for key in upper},
-                              forcing, [prepared(e) for e in forces_q] if nf else [], state_locals)
+    angles = set(spec.q) | {spec.time}
+    # the equations as derived; with products of sines and cosines contracted, the terms collected by their
+    # dependence on the state; and collected by their angles alone, each one's factor in the other states
+    # factored (the elastic double pendulum's (l1 + e1)(l2 + e2) cos(phi1 - phi2), not its four terms)
+    contracted = [lambda e: e, lambda e: contract_trigonometry(e, angles, angles | set(spec.v) | set(derivation.inputs)),
+                  lambda e: contract_trigonometry(e, angles, angles)]
+    taylor = _taylor_function(spec, n, nf, diagonal, pivots,
+                              [{key: prepared(variant(derivation.M[key])) for key in upper} for variant in contracted],
+                              [[prepared(variant(e)) for e in forcing_f] for variant in contracted],
+                              [[prepared(variant(e)) for e in forces_q] if nf else [] for variant in contracted],
+                              state_locals)
     if diagonal:
         factor_lines, factor_constants = [f"    const double a{j} = b{j};" for j in range(n)], []
         constant_pivots = [(j, c_expr(m)) for j, m in enumerate(mass_c[(j, j)] for j in range(n))
@@ -328,7 +337,9 @@ class _TaylorFunction:
 def _taylor_function(spec, n: int, nf: int, diagonal: bool, pivots: list, mass: dict, forcing: list, forces: list,
                      state_locals: list[str]) -> _TaylorFunction:
     """The body of model_taylor, or one that refuses (with the reason) where a function of the
-    equations has no Taylor recurrence here."""
+    equations has no Taylor recurrence here. `mass`, `forcing` and `forces` map each variant of the
+    equations (as derived; with products of sines and cosines contracted) to its prepared expressions: the
+    one with fewer convolutions is generated."""
     variables = {sp.Symbol(f"s_{c.name}", real=True): f"x[{j}]" for j, c in enumerate(spec.coordinates)}
     variables.update({sp.Symbol(f"s_{c.velocity}", real=True): f"x[{n + j}]" for j, c in enumerate(spec.coordinates)})
     variables.update({sp.Symbol(f"u[{k}]", real=True): f"us[{k}]" for k in range(nf)})
@@ -337,35 +348,45 @@ def _taylor_function(spec, n: int, nf: int, diagonal: bool, pivots: list, mass: 
         reason = constraints_beyond_free_motion(spec)
         if reason:
             raise TaylorUnavailable(f"{reason}, which its series do not hold")
-        code = taylor_code(n, mass, diagonal, forcing, forces, variables)
+        code = min((taylor_code(n, mass[variant], diagonal, forcing[variant], forces[variant], variables)
+                    for variant in range(len(mass))), key=lambda candidate: candidate.cost)
     except TaylorUnavailable as reason:
         return _TaylorFunction(False, str(reason), 0, ["    (void)c, (void)t, (void)u0, (void)du, (void)order, (void)x, (void)w;",
                                                        "    return 0;"])
-    body = "\n".join(code.body)
-    lines = ["    const int forces = u0 != NULL;"]
-    if "ts[" in body or "ts," in body:
+    text = "\n".join(code.first + [line for line, _ in code.later] + [f"{p.a} {p.b}" for p in code.pairs])
+    inverses = ", ".join(["0.0"] + [repr(1.0 / k) for k in range(1, TAYLOR_ORDERS[1] + 2)])
+    lines = ["    const int forces = u0 != NULL;",
+             f"    static const double inverse[TAYLOR_SLOTS + 1] = {{{inverses}}}; /* 1 / k */"]
+    if "ts[" in text or "ts," in text:
         lines.append("    double ts[TAYLOR_SLOTS] = {0.0};")
-    if "us[" in body:
+    if "us[" in text:
         lines.append(f"    double us[{nf}][TAYLOR_SLOTS];")
     if not diagonal:
         lines.append(f"    double m0[{n * n}], r[{n}];")
+    quotients = sorted(set(re.findall(r"\bz\d+\b", text)), key=lambda name: int(name[1:]))
+    if quotients:
+        lines.append(f"    double {', '.join(f'{z} = 0.0' for z in quotients)}; /* set with coefficient 0 */")
     lines += ["    int k;", "    (void)forces, (void)du, (void)t;"]
     start = [f"    if (!({c_expr(pivot)} > 0.0)) return 0; /* M not positive definite here */" for pivot in pivots]
     lines += _with_locals([f"{d[:-1]}[0];" for d in state_locals], start)  # coefficient 0: the state
-    if "ts[" in body or "ts," in body:
+    if "ts[" in text or "ts," in text:
         lines.append("    ts[0] = t;\n    ts[1] = 1.0;")
-    if "us[" in body:
+    if "us[" in text:
         lines += ["    if (forces) {", "        int i;", f"        for (i = 0; i < {nf}; i++) {{",
                   "            memset(us[i], 0, sizeof us[i]);", "            us[i][0] = u0[i];",
                   "            us[i][1] = du ? du[i] : 0.0;", "        }", "    }"]
-    shares_inverse = "inverse_k" in body
-    if shares_inverse:
-        lines.append("    double inverse_k = 0.0;")
-    lines += ["    for (k = 0; k < order && k < TAYLOR_MAX_ORDER; k++) { /* the second bound for the compiler */",
-              "        const double inverse_next = 1.0 / (k + 1); /* one division per order */", body]
-    if shares_inverse:
-        lines.append("        inverse_k = inverse_next;")
-    lines += ["    }", "    return 1;"]
+    lines.append("    if (order < 1) return 1;")
+    lines += code.first
+    with_forces = any(p.forces for p in code.pairs) or any(only for _, only in code.later)
+    if with_forces:
+        lines.append("    if (forces) {")
+        lines += ["    " + line for line in loop_over_orders(code, True)]
+        lines.append("    } else {")
+        lines += ["    " + line for line in loop_over_orders(code, False)]
+        lines.append("    }")
+    else:
+        lines += loop_over_orders(code, False)
+    lines.append("    return 1;")
     return _TaylorFunction(True, "", code.series, lines)
 
 
@@ -741,8 +762,8 @@ void model_directional(const ModelConst *c, double t, const double *real, const 
 
 /* Taylor coefficients 1 ... order of the state from x[i][0] at t; u0 (NULL: no forces) and du the
  * inputs and their rates at t; w holds TAYLOR_SERIES work series. 0 where M is not positive definite. */
-int model_taylor(const ModelConst *c, double t, const double *u0, const double *du, int order,
-                 double (*x)[TAYLOR_SLOTS], double (*w)[TAYLOR_SLOTS])
+int model_taylor(const ModelConst *restrict c, double t, const double *restrict u0, const double *restrict du,
+                 int order, double (*restrict x)[TAYLOR_SLOTS], double (*restrict w)[TAYLOR_SLOTS])
 {{
 {taylor}
 }}
