@@ -271,10 +271,21 @@ def main(argv=None) -> int:
     except ImportError:
         print("heyoka is not installed (pip install heyoka): nothing to compare")
         return 0
+    free = [n for n in object_names() if n not in constrained_names()]
+    names = args.objects.split(",") if args.objects else free
+    unknown = [n for n in names if n not in free]
+    if unknown:
+        print(f"heyoka_benchmark: {', '.join(unknown)}: not an object of the registry without contacts "
+              f"(these are: {', '.join(free)})", file=sys.stderr)
+        return 2
+    try:
+        targets = tuple(float(t) for t in args.targets.split(","))
+    except ValueError:
+        print(f"heyoka_benchmark: --targets {args.targets}: expected numbers in metres, such as 1e-9,1e-11",
+              file=sys.stderr)
+        return 2
     build_fmus()
-    names = args.objects.split(",") if args.objects else [n for n in object_names() if n not in constrained_names()]
     skipped = [n for n in object_names() if n in constrained_names()] if not args.objects else []
-    targets = tuple(float(t) for t in args.targets.split(","))
     print(f"heyoka {heyoka.__version__}; every point within the target at t = {STOP:g} s; "
           f"median of {args.repeats} interleaved runs")
     table = []
