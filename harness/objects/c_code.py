@@ -161,11 +161,9 @@ def generate_c(derivation: Derivation) -> GeneratedC:
         body += [f"        b{j} += {c_expr(e)};" for j, e in enumerate(force_reduced) if e != 0]
         body.append("    }")
     angles = set(spec.q) | {spec.time}
-    # the equations as derived; with products of sines and cosines contracted, the terms collected by their
-    # dependence on the state; and collected by their angles alone, each one's factor in the other states
-    # factored (the elastic double pendulum's (l1 + e1)(l2 + e2) cos(phi1 - phi2), not its four terms)
-    contracted = [lambda e: e, lambda e: contract_trigonometry(e, angles, angles | set(spec.v) | set(derivation.inputs)),
-                  lambda e: contract_trigonometry(e, angles, angles)]
+    # the equations as derived, and with products of sines and cosines contracted, the terms collected by
+    # their dependence on the state
+    contracted = [lambda e: e, lambda e: contract_trigonometry(e, angles, angles | set(spec.v) | set(derivation.inputs))]
     taylor = _taylor_function(spec, n, nf, diagonal, pivots,
                               [{key: prepared(variant(derivation.M[key])) for key in upper} for variant in contracted],
                               [[prepared(variant(e)) for e in forcing_f] for variant in contracted],
