@@ -24,6 +24,7 @@
 #include "fmi2_api.h"
 #include "framework.h"
 #include "handwritten_rhs.h"
+#include "median.h"
 
 #define STEP 1e-3
 #define CHECK_LIMIT 1e-12
@@ -229,18 +230,6 @@ static double check_against_generated(long n)
     return worst;
 }
 #endif
-
-static int compare(const void *a, const void *b)
-{
-    const double x = *(const double *)a, y = *(const double *)b;
-    return (x > y) - (x < y);
-}
-
-static double median(double *values, int n)
-{
-    qsort(values, (size_t)n, sizeof(double), compare);
-    return values[n / 2];
-}
 
 /* Interleaved repeats of every loop, so that machine noise hits all alike; medians as JSON. */
 static void time_all(const Api *api, long steps)

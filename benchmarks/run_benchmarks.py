@@ -9,7 +9,11 @@ counts (instructions under callgrind, right-hand-side evaluations).
    the thesis pendulums against the hand-written one. The goal: at most 1.05 times the instructions
    of the hand-written loop.
 2. Right-hand-side evaluations per accepted step for every method.
-3. Agreement of the generated thesis pendulums with the hand-written FMUs they replaced
+3. A recorded point against the internal step it holds, where the communication step is the internal
+   step (benchmarks/record_cost.c): one fmi2DoStep and one fmi2GetReal of every Real output per point
+   through the harness's C recorder, against the same steps inside one fmi2DoStep. The goal: a point at
+   most twice the step's instructions.
+4. Agreement of the generated thesis pendulums with the hand-written FMUs they replaced
    (benchmarks/agreement_with_handwritten.py).
 """
 from __future__ import annotations
@@ -25,7 +29,10 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 
+from fmpy import read_model_description  # noqa: E402
+
 from harness.fmi.fmu_instance import FmuInstance, accepted_methods  # noqa: E402
+from harness.fmi.methods import SOLVERS  # noqa: E402
 from harness.fmi.fmus import build_dir, build_fmus  # noqa: E402
 from harness.objects.registry import constrained_names, object_names  # noqa: E402
 
@@ -35,6 +42,8 @@ import agreement_with_handwritten  # noqa: E402  (beside this file)
 PENDULUMS = ("SimplePendulum", "DoublePendulum", "SpringPendulum")
 INSTRUCTION_GOAL = 1.05  # FMU instructions per internal step / hand-written loop's
 MODES = ("fmu", "generated", "bare")  # bare: the hand-written right-hand side
+RECORD_GOAL = 2.0  # instructions of a recorded point / of the internal step it holds
+RECORDED = [("SimplePendulum", "ab5"), ("SimplePendulum", "rk4"), ("DoublePendulum", "ab5"), ("DoublePendulum", "rk4")]
 
 
 def bench_command(model: str, mode: str, count: int) -> list[str]:
@@ -111,11 +120,58 @@ def evaluations_per_step() -> None:
               f"{counts[0] / counts[1]:9.3f}")
 
 
+def record_command(model: str, method: str, mode: str, count: int) -> list[str]:
+    """benchmarks/record_cost.c on the object's FMI 2.0 binary at its default h, every Real output recorded."""
+    description = read_model_description(str(build_dir() / "fmus" / f"{model}.fmu"))
+    variables = {v.name: v for v in description.modelVariables}
+    outputs = [v.valueReference for v in description.modelVariables if v.causality == "output" and v.type == "Real"]
+    return [str(build_dir() / "bin" / "record_cost"), str(build_dir() / "lib" / model / f"{model}.so"),
+            description.guid, str(variables["solver"].valueReference), str(SOLVERS.index(method) + 1),
+            str(variables["h"].valueReference), variables["h"].start, ",".join(map(str, outputs)), mode, str(count)]
+
+
+def record_instructions(model: str, method: str, mode: str, count: int) -> float:
+    """Instructions per step or point: the difference of runs of count and 2 count removes the set-up's."""
+    runs = []
+    for n in (count, 2 * count):
+        with tempfile.TemporaryDirectory() as folder:
+            out = Path(folder) / "callgrind.out"
+            subprocess.run(["valgrind", "--tool=callgrind", f"--callgrind-out-file={out}"]
+                           + record_command(model, method, mode, n), check=True, capture_output=True)
+            runs.append(int(next(line for line in out.read_text().splitlines()
+                                 if line.startswith(("summary:", "totals:"))).split()[1]))
+    return (runs[1] - runs[0]) / count
+
+
+def recorded_points(args: argparse.Namespace) -> None:
+    print("\n3. A recorded point (one fmi2DoStep of one internal step and one fmi2GetReal of every Real output, "
+          "through the\n   harness's C recorder) against the internal step it holds (inside one fmi2DoStep); "
+          "default h")
+    print(f"{'object':16s} {'method':6s} {'step ns':>8s} {'point ns':>9s} {'ratio':>6s} {'step instr':>11s} "
+          f"{'point instr':>12s} {'ratio':>6s}   (goal: point/step <= {RECORD_GOAL:.0f} in instructions)")
+    for model, method in RECORDED:
+        result = subprocess.run(record_command(model, method, "both", args.record_points), capture_output=True,
+                                text=True)
+        if result.returncode != 0:
+            raise SystemExit(f"record_cost {model} {method} failed: {result.stderr.strip()}")
+        timing = json.loads(result.stdout)
+        line = (f"{model:16s} {method:6s} {timing['ns_per_step']:8.1f} {timing['ns_per_point']:9.1f} "
+                f"{timing['point_to_step']:6.2f}")
+        if shutil.which("valgrind") is None:
+            print(line + "   (valgrind not found: instruction counts skipped)")
+            continue
+        step, point = (record_instructions(model, method, mode, args.callgrind_points) for mode in ("steps", "record"))
+        print(f"{line} {step:11.1f} {point:12.1f} {point / step:6.2f}   "
+              f"{'PASS' if point / step <= RECORD_GOAL else 'over'}")
+
+
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--steps", type=int, default=2_000_000, help="internal steps per timed run")
     parser.add_argument("--callgrind-steps", type=int, default=100_000)
-    parser.add_argument("--no-agreement", action="store_true", help="skip section 3 (it rebuilds the old FMUs)")
+    parser.add_argument("--record-points", type=int, default=500_000, help="recorded points per timed run")
+    parser.add_argument("--callgrind-points", type=int, default=20_000)
+    parser.add_argument("--no-agreement", action="store_true", help="skip section 4 (it rebuilds the old FMUs)")
     parser.add_argument("--callgrind-objects", type=lambda text: text.split(","), default=None,
                         help="the objects counted under callgrind, comma-separated (default: every object without "
                              "constraints)")
@@ -127,8 +183,9 @@ def main() -> int:
     build_fmus()
     step_cost(args)
     evaluations_per_step()
+    recorded_points(args)
     if not args.no_agreement:
-        print("\n3. ", end="")
+        print("\n4. ", end="")
         return agreement_with_handwritten.agreement()
     return 0
 

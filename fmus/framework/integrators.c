@@ -146,38 +146,70 @@ ENGINE_INLINE void evaluate(const Evaluator *f, int mode, double t, const double
     }
 }
 
-/* sum_j w_j k[j][i] over the nonzero weights, started at the first term: with constant weights the
- * compiler drops the zeros, and no 0.0 + w k remains (IEEE rules forbid removing it). */
-ENGINE_INLINE double weighted_sum(const double *w, int count, double (*k)[STATE_SLOTS], int i)
+/* A tableau's weights and nodes times the step h, computed once per loop: a stage then multiplies each k
+ * once (h a_sj times k_j, not h times a_sj k_j). */
+typedef struct {
+    double a[RK_MAX_STAGES][RK_MAX_STAGES], b[RK_MAX_STAGES], e[RK_MAX_STAGES], c[RK_MAX_STAGES];
+} StepWeights;
+
+ENGINE_INLINE StepWeights step_weights(const ButcherTableau *tab, double h)
+{
+    StepWeights w;
+    int s, j;
+    UNROLL for (s = 0; s < tab->stages; s++) {
+        w.c[s] = tab->c[s] * h;
+        w.b[s] = tab->b[s] * h;
+        w.e[s] = tab->e[s] * h;
+        UNROLL for (j = 0; j < s; j++) w.a[s][j] = tab->a[s][j] * h;
+    }
+    return w;
+}
+
+/* sum_j (h w_j) k[j][i] over the tableau's nonzero weights w, the k of equal weights added before their one
+ * product (rk4: h/6 (k1 + k4) + h/3 (k2 + k3)). The tableau is a constant where this is inlined: the compiler
+ * settles every comparison, drops the zeros, and no 0.0 + w k remains (IEEE rules forbid removing it). */
+ENGINE_INLINE double weighted_sum(const double *w, const double *scaled, int count, double (*k)[STATE_SLOTS], int i)
 {
     double sum = 0.0;
-    int j, started = 0;
+    int j, l, started = 0;
     UNROLL for (j = 0; j < count; j++) {
-        if (w[j] != 0.0) {
-            sum = started ? sum + w[j] * k[j][i] : w[j] * k[j][i];
+        int leads = w[j] != 0.0; /* the first of its weight */
+        UNROLL for (l = 0; l < j; l++) leads = leads && w[l] != w[j];
+        if (leads) {
+            double group = k[j][i];
+            UNROLL for (l = j + 1; l < count; l++) if (w[l] == w[j]) group += k[l][i];
+            sum = started ? sum + scaled[j] * group : scaled[j] * group;
             started = 1;
         }
     }
     return sum;
 }
 
-/* One explicit Runge-Kutta step of tableau tab, in place on x; f0 = f(t, x) is given so that the
- * Adams-Bashforth start can keep it. err (optional) receives h * sum(e_j k_j). */
-ENGINE_INLINE void runge_kutta_step(const Evaluator *f, int mode, const ButcherTableau *tab, double t, double h,
-                                    double *x, const double *f0, double *err)
+/* One explicit Runge-Kutta step of tableau tab (w: its weights times h), in place on x; f0 = f(t, x) is given
+ * so that the Adams-Bashforth start can keep it. err (optional) receives h * sum(e_j k_j). */
+ENGINE_INLINE void runge_kutta_step(const Evaluator *f, int mode, const ButcherTableau *tab, const StepWeights *w,
+                                    double t, double *x, const double *f0, double *err)
 {
     double k[RK_MAX_STAGES][STATE_SLOTS];
     double y[STATE_SLOTS];
     int s, i;
     UNROLL for (i = 0; i < N_STATES; i++) k[0][i] = f0[i];
     UNROLL for (s = 1; s < tab->stages; s++) {
-        UNROLL for (i = 0; i < N_STATES; i++) y[i] = x[i] + h * weighted_sum(tab->a[s], s, k, i);
-        evaluate(f, mode, t + tab->c[s] * h, y, k[s]);
+        UNROLL for (i = 0; i < N_STATES; i++) y[i] = x[i] + weighted_sum(tab->a[s], w->a[s], s, k, i);
+        evaluate(f, mode, t + w->c[s], y, k[s]);
     }
     if (err) {
-        UNROLL for (i = 0; i < N_STATES; i++) err[i] = h * weighted_sum(tab->e, tab->stages, k, i);
+        UNROLL for (i = 0; i < N_STATES; i++) err[i] = weighted_sum(tab->e, w->e, tab->stages, k, i);
     }
-    UNROLL for (i = 0; i < N_STATES; i++) x[i] += h * weighted_sum(tab->b, tab->stages, k, i);
+    UNROLL for (i = 0; i < N_STATES; i++) x[i] += weighted_sum(tab->b, w->b, tab->stages, k, i);
+}
+
+/* One step of h, its weights scaled here (a step that is not one of a loop's equal steps). */
+ENGINE_INLINE void runge_kutta_step_of(const Evaluator *f, int mode, const ButcherTableau *tab, double t, double h,
+                                       double *x, const double *f0, double *err)
+{
+    const StepWeights w = step_weights(tab, h);
+    runge_kutta_step(f, mode, tab, &w, t, x, f0, err);
 }
 
 /* A state refused: kept for the message of a step that stops on it. */
@@ -209,24 +241,38 @@ ENGINE_INLINE int rejected(RightHandSide *f, double t, double *x, const double *
     return 1;
 }
 
-ENGINE_INLINE int64_t runge_kutta_loop(RightHandSide *f, int mode, const ButcherTableau *tab, double *x, double t0,
+/* The loop steps a local copy of x: no store through x can then alias the model's constants, which the
+ * compiler keeps out of the loop. */
+ENGINE_INLINE int64_t runge_kutta_steps(RightHandSide *f, int mode, const ButcherTableau *tab, double *x, double t0,
                                        double hs, int64_t first, int64_t n, int check_each)
 {
     const Evaluator e = evaluator_of(f);
-    double f0[STATE_SLOTS], saved[STATE_SLOTS];
-    int64_t i;
+    const StepWeights w = step_weights(tab, hs);
+    double state[STATE_SLOTS], f0[STATE_SLOTS], saved[STATE_SLOTS];
+    int64_t i, evaluated = n;
+    memcpy(state, x, sizeof state);
     for (i = first; i < first + n; i++) {
         const double t = t0 + (double)i * hs;
-        if (check_each) memcpy(saved, x, sizeof saved);
-        evaluate(&e, mode, t, x, f0);
-        runge_kutta_step(&e, mode, tab, t, hs, x, f0, NULL);
-        if (check_each && rejected(f, t + hs, x, saved)) {
-            f->evaluations += (uint64_t)(i - first + 1) * (uint64_t)tab->stages;
-            return i - first;
+        if (check_each) memcpy(saved, state, sizeof saved);
+        evaluate(&e, mode, t, state, f0);
+        runge_kutta_step(&e, mode, tab, &w, t, state, f0, NULL);
+        if (check_each && rejected(f, t + hs, state, saved)) {
+            evaluated = i - first + 1;
+            break;
         }
     }
-    f->evaluations += (uint64_t)n * (uint64_t)tab->stages;
-    return n;
+    memcpy(x, state, sizeof state);
+    f->evaluations += (uint64_t)evaluated * (uint64_t)tab->stages;
+    return i - first;
+}
+
+/* Compiled apart for check_each: the loop that does not check calls nothing unknown, so the model's constants stay
+ * out of it. */
+ENGINE_INLINE int64_t runge_kutta_loop(RightHandSide *f, int mode, const ButcherTableau *tab, double *x, double t0,
+                                       double hs, int64_t first, int64_t n, int check_each)
+{
+    if (check_each) return runge_kutta_steps(f, mode, tab, x, t0, hs, first, n, 1);
+    return runge_kutta_steps(f, mode, tab, x, t0, hs, first, n, 0);
 }
 
 /* Adams-Bashforth: x(k+1) = x(k) + h sum beta_j f(k-j). Until enough history exists the starter
@@ -258,10 +304,10 @@ ENGINE_INLINE int64_t adams_bashforth_loop(RightHandSide *f, int mode, const Ada
             const int restarting = m->ab_restarted;
             if (m->ab_count + 1 == ab->steps) m->ab_restarted = 0; /* the history is whole after this step */
             if (restarting) {
-                runge_kutta_step(&e, mode, ab->restarter, t, hs, x, newest, NULL);
+                runge_kutta_step_of(&e, mode, ab->restarter, t, hs, x, newest, NULL);
                 f->evaluations += (uint64_t)(ab->restarter->stages - 1);
             } else {
-                runge_kutta_step(&e, mode, ab->starter, t, hs, x, newest, NULL);
+                runge_kutta_step_of(&e, mode, ab->starter, t, hs, x, newest, NULL);
                 f->evaluations += (uint64_t)(ab->starter->stages - 1);
             }
         } else if (!ab->corrected) {
@@ -950,12 +996,12 @@ ENGINE_INLINE void slope_step(RightHandSide *f, const Evaluator *e, int mode, in
     } else { /* each with its constant tableau, as fixed_loop has them */
         const ButcherTableau *tab = tableau_of(solver);
         switch (solver) {
-        case SOLVER_EULER: runge_kutta_step(e, mode, &TABLEAU_EULER, t, h, x, f0, NULL); break;
-        case SOLVER_MIDPOINT: runge_kutta_step(e, mode, &TABLEAU_MIDPOINT, t, h, x, f0, NULL); break;
-        case SOLVER_HEUN: runge_kutta_step(e, mode, &TABLEAU_HEUN, t, h, x, f0, NULL); break;
-        case SOLVER_RK3: runge_kutta_step(e, mode, &TABLEAU_RK3, t, h, x, f0, NULL); break;
-        case SOLVER_RK4: runge_kutta_step(e, mode, &TABLEAU_RK4, t, h, x, f0, NULL); break;
-        default: runge_kutta_step(e, mode, &TABLEAU_NYSTROM5, t, h, x, f0, NULL); break;
+        case SOLVER_EULER: runge_kutta_step_of(e, mode, &TABLEAU_EULER, t, h, x, f0, NULL); break;
+        case SOLVER_MIDPOINT: runge_kutta_step_of(e, mode, &TABLEAU_MIDPOINT, t, h, x, f0, NULL); break;
+        case SOLVER_HEUN: runge_kutta_step_of(e, mode, &TABLEAU_HEUN, t, h, x, f0, NULL); break;
+        case SOLVER_RK3: runge_kutta_step_of(e, mode, &TABLEAU_RK3, t, h, x, f0, NULL); break;
+        case SOLVER_RK4: runge_kutta_step_of(e, mode, &TABLEAU_RK4, t, h, x, f0, NULL); break;
+        default: runge_kutta_step_of(e, mode, &TABLEAU_NYSTROM5, t, h, x, f0, NULL); break;
         }
         f->evaluations += (uint64_t)(tab->stages - 1);
     }
@@ -1021,7 +1067,7 @@ double integrate_adaptive(RightHandSide *f, IntegratorMemory *memory, double *x,
         int accept;
         if (!adaptive_step_start(f, &e, mode, t, x, f0, &have_f0, (uint64_t)TABLEAU_RKF45.stages)) break;
         memcpy(y, x, sizeof y);
-        runge_kutta_step(&e, mode, &TABLEAU_RKF45, t, step, y, f0, err);
+        runge_kutta_step_of(&e, mode, &TABLEAU_RKF45, t, step, y, f0, err);
         f->evaluations += (uint64_t)(TABLEAU_RKF45.stages - 1);
         norm = scaled_error(x, err, NULL, tol);
         accept = norm <= 1.0 && regular(f, y);
