@@ -114,21 +114,21 @@ static int ensure_constants(Instance *inst, const char *function)
  * parameters and inputs in real[]; Discard where they are undefined or not finite. */
 static Status compute_outputs(Instance *inst, const char *function, double *real)
 {
-    double *dx = NULL;
-    int bad;
+    int bad, defined;
 #if N_STATES > 0
     {
         double u[INPUT_SLOTS];
         gather_inputs(inst, u);
-        dx = real + N_STATES; /* der(x) follow the states (checked by the code generator) */
-        model_derivatives(&inst->constants, inst->s.time, real, u, dx);
+        defined = model_evaluate(&inst->constants, inst->s.time, u, real); /* der(x) follow the states */
     }
+#else
+    defined = model_outputs(&inst->constants, inst->s.time, NULL, real);
 #endif
-    if (!model_outputs(&inst->constants, inst->s.time, dx, real)) {
+    if (!defined) {
         log_discard(inst, "%s: the outputs are undefined in the current (singular) configuration", function);
         return STATUS_DISCARD;
     }
-    bad = first_non_finite(real, N_REAL);
+    bad = all_finite(real, N_REAL) ? -1 : first_non_finite(real, N_REAL);
     if (bad >= 0) {
         log_discard(inst, "%s: %s is not finite for the current inputs and states", function, REAL_VARIABLES[bad].name);
         return STATUS_DISCARD;
@@ -447,21 +447,29 @@ Status core_get_real(Instance *inst, const char *function, const unsigned int vr
 {
     Status status;
     size_t i;
+    int unknown = 0;
     if (!core_arrays_present(inst, function, nvr, vr, value)) return STATUS_ERROR;
-    for (i = 0; i < nvr; i++)
-        if (!real_reference_known(inst, function, vr[i])) return STATUS_ERROR;
+    for (i = 0; i < nvr; i++) unknown |= vr[i] >= N_REAL;
+    if (unknown) /* the message names the first */
+        for (i = 0; i < nvr; i++)
+            if (!real_reference_known(inst, function, vr[i])) return STATUS_ERROR;
     /* Parameters, inputs and states hold what was set: reading only those needs no outputs, and stays
      * STATUS_OK where the outputs are undefined. */
     status = STATUS_OK;
-    for (i = 0; i < nvr; i++)
-        if (!settable_in(&REAL_VARIABLES[vr[i]])) {
-            status = ensure_outputs(inst, function);
-            break;
-        }
+    if (!inst->outputs_valid)
+        for (i = 0; i < nvr; i++)
+            if (!settable_in(&REAL_VARIABLES[vr[i]])) {
+                status = ensure_outputs(inst, function);
+                break;
+            }
     if (status == STATUS_ERROR) return status;
+    if (status == STATUS_OK) {
+        for (i = 0; i < nvr; i++) value[i] = inst->s.real[vr[i]];
+        return status;
+    }
     /* With STATUS_DISCARD, values that are not finite are not handed out: those entries stay as they were. */
     for (i = 0; i < nvr; i++)
-        if (status == STATUS_OK || isfinite(inst->s.real[vr[i]])) value[i] = inst->s.real[vr[i]];
+        if (isfinite(inst->s.real[vr[i]])) value[i] = inst->s.real[vr[i]];
     return status;
 }
 

@@ -179,6 +179,19 @@ INTERNAL void log_debug(Instance *inst, const char *fmt, ...);
 
 /* Index of the first non-finite value among n, or -1 when all are finite. */
 INTERNAL int first_non_finite(const double *values, int n);
+/* Whether all n values are finite, without a branch per value: v - v is 0 for a finite v and NaN otherwise, and a
+ * NaN survives the sums (first_non_finite names the culprit where this fails). */
+static inline int all_finite(const double *values, int n)
+{
+    double even = 0.0, odd = 0.0;
+    int i;
+    for (i = 0; i + 1 < n; i += 2) {
+        even += values[i] - values[i];
+        odd += values[i + 1] - values[i + 1];
+    }
+    if (i < n) even += values[i] - values[i];
+    return even + odd == 0.0;
+}
 /* The name of Real variable k (its value reference), for messages. */
 INTERNAL const char *real_variable_name(int k);
 
@@ -288,6 +301,11 @@ INTERNAL int model_closed_form_step(const ModelConst *c, double H, const double 
  * (and the state derivatives dx, NULL for a model without states); returns 0 at a singular
  * configuration. */
 INTERNAL int model_outputs(const ModelConst *c, double t, const double *dx, double *real);
+#if N_STATES > 0
+/* The state derivatives (after the states in real[]) for the inputs u (NULL: all zero), then model_outputs: one
+ * function, so that each sine and cosine the two share is computed once. */
+INTERNAL int model_evaluate(const ModelConst *c, double t, const double *u, double *real);
+#endif
 /* rate[vr] = exact time derivative of every Real output vr; du are the input derivatives. */
 INTERNAL void model_output_rates(const ModelConst *c, double t, const double *real, const double *dx, const double *du,
                         double *rate);

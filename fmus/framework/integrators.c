@@ -293,7 +293,7 @@ ENGINE_INLINE int64_t adams_bashforth_loop(RightHandSide *f, int mode, const Ada
             memcpy(saved, x, sizeof saved);
             saved_memory = *m;
         }
-        m->ab_head = (m->ab_head + 1) % AB_MAX_STEPS;
+        m->ab_head = m->ab_head + 1 == AB_MAX_STEPS ? 0 : m->ab_head + 1; /* no division: the ring's next slot */
         newest = m->ab_history[m->ab_head];
         evaluate(&e, mode, t, x, newest);
         f->evaluations++;
@@ -310,28 +310,31 @@ ENGINE_INLINE int64_t adams_bashforth_loop(RightHandSide *f, int mode, const Ada
                 runge_kutta_step_of(&e, mode, ab->starter, t, hs, x, newest, NULL);
                 f->evaluations += (uint64_t)(ab->starter->stages - 1);
             }
-        } else if (!ab->corrected) {
-            UNROLL for (q = 0; q < N_STATES; q++) {
-                double sum = ab->beta[0] * newest[q];
-                UNROLL for (j = 1; j < ab->steps; j++)
-                    sum += ab->beta[j] * m->ab_history[(m->ab_head - j + AB_MAX_STEPS) % AB_MAX_STEPS][q];
-                x[q] += hs * sum;
-            }
-        } else { /* predict, evaluate, correct */
-            double predicted[STATE_SLOTS], f_predicted[STATE_SLOTS];
-            UNROLL for (q = 0; q < N_STATES; q++) {
-                double sum = ab->beta[0] * newest[q];
-                UNROLL for (j = 1; j < ab->steps; j++)
-                    sum += ab->beta[j] * m->ab_history[(m->ab_head - j + AB_MAX_STEPS) % AB_MAX_STEPS][q];
-                predicted[q] = x[q] + hs * sum;
-            }
-            evaluate(&e, mode, t + hs, predicted, f_predicted);
-            f->evaluations++;
-            UNROLL for (q = 0; q < N_STATES; q++) {
-                double sum = ab->moulton[0] * f_predicted[q] + ab->moulton[1] * newest[q];
-                UNROLL for (j = 1; j + 1 < ab->steps; j++)
-                    sum += ab->moulton[j + 1] * m->ab_history[(m->ab_head - j + AB_MAX_STEPS) % AB_MAX_STEPS][q];
-                x[q] += hs * sum;
+        } else {
+            /* the past slopes f(k - j), their ring positions found once per step rather than once per state */
+            const double *past[AB_MAX_STEPS];
+            UNROLL for (j = 0; j < ab->steps; j++)
+                past[j] = m->ab_history[m->ab_head >= j ? m->ab_head - j : m->ab_head - j + AB_MAX_STEPS];
+            if (!ab->corrected) {
+                UNROLL for (q = 0; q < N_STATES; q++) {
+                    double sum = ab->beta[0] * newest[q];
+                    UNROLL for (j = 1; j < ab->steps; j++) sum += ab->beta[j] * past[j][q];
+                    x[q] += hs * sum;
+                }
+            } else { /* predict, evaluate, correct */
+                double predicted[STATE_SLOTS], f_predicted[STATE_SLOTS];
+                UNROLL for (q = 0; q < N_STATES; q++) {
+                    double sum = ab->beta[0] * newest[q];
+                    UNROLL for (j = 1; j < ab->steps; j++) sum += ab->beta[j] * past[j][q];
+                    predicted[q] = x[q] + hs * sum;
+                }
+                evaluate(&e, mode, t + hs, predicted, f_predicted);
+                f->evaluations++;
+                UNROLL for (q = 0; q < N_STATES; q++) {
+                    double sum = ab->moulton[0] * f_predicted[q] + ab->moulton[1] * newest[q];
+                    UNROLL for (j = 1; j + 1 < ab->steps; j++) sum += ab->moulton[j + 1] * past[j][q];
+                    x[q] += hs * sum;
+                }
             }
         }
         if (check_each && rejected(f, t + hs, x, saved)) {

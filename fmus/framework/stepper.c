@@ -83,8 +83,7 @@ static int evaluate_at(const Instance *inst, double t, const double *x, double *
     gather_inputs(inst, u);
     for (i = 0; i < N_INPUTS; i++) u[i] += (t - inst->s.time) * inst->s.input_derivative[i];
     scatter_inputs(real, u);
-    model_derivatives(&inst->constants, t, x, u, real + N_STATES);
-    return model_outputs(&inst->constants, t, real + N_STATES, real) && first_non_finite(real, N_REAL) < 0;
+    return model_evaluate(&inst->constants, t, u, real) && all_finite(real, N_REAL);
 }
 
 /* The importer's look at an accepted internal step: the instance shows the step's time, states and
@@ -1031,7 +1030,8 @@ Status step_to(Instance *inst, const char *function, double t, double H)
                   "first); allowed for gbs: 0 (fixed step h) or [%g, 1]", function, s->real[VR_tol], GBS_SMALLEST_TOL);
         return STATUS_ERROR;
     }
-    {
+#if HAS_LINEAR_MODEL
+    if (inst->constants.linear) { /* only model = linear has a closed form */
         double u_mid[INPUT_SLOTS], closed[STATE_SLOTS];
         for (i = 0; i < N_INPUTS; i++) u_mid[i] = f.u0[i] + 0.5 * H * f.du[i];
         memcpy(closed, x, sizeof closed);
@@ -1042,6 +1042,7 @@ Status step_to(Instance *inst, const char *function, double t, double H)
             return finish_with(inst, t, H, checked, f.inputs_vary);
         }
     }
+#endif
 
 #if N_CONSTRAINTS > 0
     return step_with_events(inst, function, &f, solver, t, H);

@@ -738,10 +738,26 @@ int model_closed_form_step(const ModelConst *c, double H, const double *u, doubl
 {closed_form}
 }}
 
-int model_outputs(const ModelConst *c, double t, const double *dx, double *real)
+/* The outputs, inlined into model_outputs and into model_evaluate, where each sine and cosine they share with the
+ * derivatives is then computed once. */
+#if defined(__GNUC__) || defined(__clang__)
+__attribute__((always_inline))
+#endif
+static inline int outputs_of(const ModelConst *c, double t, const double *dx, double *real)
 {{
 {outputs}
     return 1;
+}}
+
+int model_outputs(const ModelConst *c, double t, const double *dx, double *real)
+{{
+    return outputs_of(c, t, dx, real);
+}}
+
+int model_evaluate(const ModelConst *c, double t, const double *u, double *real)
+{{
+    model_derivatives(c, t, real, u, real + N_STATES);
+    return outputs_of(c, t, real + N_STATES, real);
 }}
 
 void model_output_rates(const ModelConst *c, double t, const double *real, const double *dx, const double *du,
