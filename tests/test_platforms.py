@@ -193,16 +193,17 @@ def run_everywhere(importers, tmp_path, names: list[str], version: int, platform
         pytest.skip(i386_problem())
     if kind not in importers:
         needs({"wine": "wine", "qemu": "qemu-aarch64"}[kind], {"wine": "wine64", "qemu": "qemu-user"}[kind])
-    native_jobs, other_jobs = [], []
-    for name, setting in zip(names, settings):
-        md = read_model_description(str(fmu_path(name, version)))
-        token = md.guid if version == 2 else md.instantiationToken
-        outputs = [v.valueReference for v in md.modelVariables if v.causality == "output"
-                   and v.type in ("Real", "Float64")]
-        native_jobs.append((extracted_binary(tmp_path, name, version, NATIVE[version]), version, token, outputs,
-                            setting))
-        other_jobs.append((extracted_binary(tmp_path, name, version, platform), version, token, outputs, setting))
+    native_jobs = [driver_job(tmp_path, name, version, NATIVE[version], s) for name, s in zip(names, settings)]
+    other_jobs = [driver_job(tmp_path, name, version, platform, s) for name, s in zip(names, settings)]
     return list(zip(importers["native"].run(native_jobs), importers[kind].run(other_jobs)))
+
+
+def driver_job(tmp_path, name: str, version: int, platform: str, settings: list[str]):
+    """The driver's job for the FMU's binary for platform: every Real output over 10 s with these settings."""
+    md = read_model_description(str(fmu_path(name, version)))
+    token = md.guid if version == 2 else md.instantiationToken
+    outputs = [v.valueReference for v in md.modelVariables if v.causality == "output" and v.type in ("Real", "Float64")]
+    return extracted_binary(tmp_path, name, version, platform), version, token, outputs, settings
 
 
 def deviations(native: list[str], other: list[str]) -> list[float]:
@@ -239,21 +240,14 @@ def one_ulp_later(name: str, version: int) -> list[str]:
     return moved[:1]
 
 
-def predictable_points(importers, tmp_path, names: list[str], version: int) -> dict[str, int]:
+def predictable_points(importers, tmp_path, names: list[str], version: int, from_start: list[list[str]]) -> dict[str, int]:
     """Per object, the communication points (from the start) through which the x86_64 binary's motion from a
-    start one ulp away stays within PREDICTABLE of its motion from the start itself."""
-    jobs = []
-    for name in names:
-        md = read_model_description(str(fmu_path(name, version)))
-        token = md.guid if version == 2 else md.instantiationToken
-        outputs = [v.valueReference for v in md.modelVariables if v.causality == "output"
-                   and v.type in ("Real", "Float64")]
-        binary = extracted_binary(tmp_path, name, version, NATIVE[version])
-        jobs += [(binary, version, token, outputs, []), (binary, version, token, outputs, one_ulp_later(name, version))]
-    runs = importers["native"].run(jobs)
+    start one ulp away stays within PREDICTABLE of its motion from the start itself (from_start: those lines)."""
+    moved = importers["native"].run([driver_job(tmp_path, name, version, NATIVE[version], one_ulp_later(name, version))
+                                     for name in names])
     counts = {}
-    for name, start, moved in zip(names, runs[::2], runs[1::2]):
-        apart = [d > PREDICTABLE for d in deviations(start, moved)]
+    for name, start, away in zip(names, from_start, moved):
+        apart = [d > PREDICTABLE for d in deviations(start, away)]
         counts[name] = apart.index(True) if any(apart) else len(apart)
     return counts
 
@@ -278,7 +272,8 @@ def test_each_binary_gives_the_x86_64_linux_numbers(importers, tmp_path, compati
     second at least."""
     version = PLATFORMS[platform][0]
     runs = run_everywhere(importers, tmp_path, FMU_NAMES, version, platform, kind, [[] for _ in FMU_NAMES])
-    horizon = predictable_points(importers, tmp_path, FMU_NAMES, version) if kind != "qemu" else {}
+    horizon = predictable_points(importers, tmp_path, FMU_NAMES, version, [native for native, _ in runs]) \
+        if kind != "qemu" else {}
     for name, (native, other) in zip(FMU_NAMES, runs):
         assert len(native) == 202 and len(other) == 202
         if kind == "qemu":
