@@ -43,7 +43,7 @@ PENDULUMS = ("SimplePendulum", "DoublePendulum", "SpringPendulum")
 INSTRUCTION_GOAL = 1.05  # FMU instructions per internal step / hand-written loop's
 MODES = ("fmu", "generated", "bare")  # bare: the hand-written right-hand side
 RECORD_GOAL = 2.0  # instructions of a recorded point / of the internal step it holds
-RECORDED = [("SimplePendulum", "ab5"), ("SimplePendulum", "rk4"), ("DoublePendulum", "ab5"), ("DoublePendulum", "rk4")]
+RECORDED_METHODS = ("ab5", "rk4")  # one evaluation per step, and four
 
 
 def bench_command(model: str, mode: str, count: int) -> list[str]:
@@ -149,7 +149,7 @@ def recorded_points(args: argparse.Namespace) -> None:
           "default h")
     print(f"{'object':16s} {'method':6s} {'step ns':>8s} {'point ns':>9s} {'ratio':>6s} {'step instr':>11s} "
           f"{'point instr':>12s} {'ratio':>6s}   (goal: point/step <= {RECORD_GOAL:.0f} in instructions)")
-    for model, method in RECORDED:
+    for model, method in ((m, method) for m in args.recorded_objects for method in RECORDED_METHODS):
         result = subprocess.run(record_command(model, method, "both", args.record_points), capture_output=True,
                                 text=True)
         if result.returncode != 0:
@@ -175,11 +175,15 @@ def main() -> int:
     parser.add_argument("--callgrind-objects", type=lambda text: text.split(","), default=None,
                         help="the objects counted under callgrind, comma-separated (default: every object without "
                              "constraints)")
+    parser.add_argument("--recorded-objects", type=lambda text: text.split(","), default=None,
+                        help="the objects of section 3, comma-separated (default: every object without constraints)")
     args = parser.parse_args()
     countable = [m for m in object_names() if m not in constrained_names()]
-    for name in args.callgrind_objects or []:
-        if name not in countable:
-            parser.error(f"--callgrind-objects: {name!r} is not one of {', '.join(countable)}")
+    for option in ("callgrind_objects", "recorded_objects"):
+        for name in getattr(args, option) or []:
+            if name not in countable:
+                parser.error(f"--{option.replace('_', '-')}: {name!r} is not one of {', '.join(countable)}")
+    args.recorded_objects = args.recorded_objects or countable
     build_fmus()
     step_cost(args)
     evaluations_per_step()

@@ -186,6 +186,10 @@ def header(md: ModelDescription, xml_name: str) -> str:
     reals = [v for v in md.variables if v.type_tag == "Real"]
     integers = [v for v in md.variables if v.type_tag in INTEGER_TYPES]
     inputs = [v for v in reals if v.causality == "input"]
+    # after the states and their derivatives, the run of Reals that only a setter writes (range-checked there)
+    set_begin = set_end = 2 * len(md.states)
+    while set_end < len(reals) and reals[set_end].causality in ("parameter", "input"):
+        set_end += 1
     lines = [
         f"/* Generated from modelDescription/{xml_name} by tools/fmu_codegen.py. Do not edit: edit the XML. */",
         "#ifndef MODEL_DESCRIPTION_H",
@@ -200,6 +204,9 @@ def header(md: ModelDescription, xml_name: str) -> str:
         f"#define N_STATES {len(md.states)}",
         f"#define N_INPUTS {len(inputs)}",
         f"#define N_EVENT_INDICATORS {md.event_indicators}",
+        "/* Reals SET_REALS_BEGIN .. SET_REALS_END - 1 are parameters and inputs: checked when set, never computed. */",
+        f"#define SET_REALS_BEGIN {set_begin}",
+        f"#define SET_REALS_END {set_end}",
         "",
     ]
     lines += [f"#define VR_{v.c_name} {v.value_reference}" for v in md.variables]

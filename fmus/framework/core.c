@@ -38,16 +38,25 @@ void core_describe_states(const Instance *inst, unsigned mask, char *text, size_
     if (!text[0]) snprintf(text, size, "none");
 }
 
-int core_call_allowed(Instance *inst, const char *function, unsigned cs, unsigned me)
+/* Apart from core_call_allowed, so that an allowed call sets up no message buffer. */
+#if defined(__GNUC__) || defined(__clang__)
+__attribute__((noinline, cold))
+#endif
+static int refuse_call(Instance *inst, const char *function, unsigned mask)
 {
-    const unsigned mask = inst->type == INTERFACE_CO_SIMULATION ? cs : me;
     char allowed[256];
-    if (mask & (unsigned)inst->s.machine_state) return 1;
     core_describe_states(inst, mask, allowed, sizeof allowed);
     log_error(inst, "%s: illegal call sequence: not allowed in state %s for %s (allowed in: %s)", function,
               core_state_name(inst, inst->s.machine_state),
               inst->type == INTERFACE_CO_SIMULATION ? "Co-Simulation" : "Model Exchange", allowed);
     return 0;
+}
+
+int core_call_allowed(Instance *inst, const char *function, unsigned cs, unsigned me)
+{
+    const unsigned mask = inst->type == INTERFACE_CO_SIMULATION ? cs : me;
+    if (mask & (unsigned)inst->s.machine_state) return 1;
+    return refuse_call(inst, function, mask);
 }
 
 Status core_set_logging(Instance *inst, const char *function, int on, size_t n, const char *const categories[])
@@ -93,6 +102,7 @@ void core_reset(Instance *inst)
     inst->s.machine_state = MS_INSTANTIATED;
     inst->constants_valid = 0;
     inst->outputs_valid = 0;
+    inst->derivatives_current = 0;
 }
 /* model_prepare guarded by the cross-parameter checks, so that no output can become NaN. */
 static int ensure_constants(Instance *inst, const char *function)
@@ -107,6 +117,7 @@ static int ensure_constants(Instance *inst, const char *function)
     inst->constants.active = &inst->s.active_constraints; /* the instance never moves */
 #endif
     inst->constants_valid = 1;
+    inst->substep_work = 0.0; /* the method or its settings may have changed with them */
     return 1;
 }
 
@@ -128,7 +139,7 @@ static Status compute_outputs(Instance *inst, const char *function, double *real
         log_discard(inst, "%s: the outputs are undefined in the current (singular) configuration", function);
         return STATUS_DISCARD;
     }
-    bad = all_finite(real, N_REAL) ? -1 : first_non_finite(real, N_REAL);
+    bad = computed_finite(real) ? -1 : first_non_finite(real, N_REAL);
     if (bad >= 0) {
         log_discard(inst, "%s: %s is not finite for the current inputs and states", function, REAL_VARIABLES[bad].name);
         return STATUS_DISCARD;
@@ -148,6 +159,7 @@ static Status ensure_outputs(Instance *inst, const char *function)
     if (N_STATES > 0 && inst->type == INTERFACE_MODEL_EXCHANGE) inst->s.integrator.n_rhs++;
     if (status != STATUS_OK) return status;
     inst->outputs_valid = 1;
+    inst->derivatives_current = 0; /* evaluated with the inputs as an array, not as a step evaluates them */
     return STATUS_OK;
 }
 
@@ -408,6 +420,7 @@ static void value_stored(Instance *inst, const VariableInfo *v, unsigned int vr,
     } else if (v->causality == CAUSALITY_INPUT) {
         const int k = input_index(vr);
         if (k >= 0) inst->s.input_derivative[k] = 0.0; /* setting the input again clears its slope */
+        inst->derivatives_current = 0;
         /* After a step the outputs stay those of the step's end until the next step. */
         if (inst->s.machine_state == MS_STEP_COMPLETE) return;
     } else {
@@ -1125,7 +1138,7 @@ static Status take_requested_inputs(Instance *inst, const char *function, double
 Status core_do_step(Instance *inst, const char *function, double t, double H)
 {
     Status status;
-    if (!isfinite(t) || fabs(t - inst->s.time) > 1e-9 * fmax(1.0, fabs(t))) {
+    if (!isfinite(t) || fabs(t - inst->s.time) > 1e-9 * (fabs(t) > 1.0 ? fabs(t) : 1.0)) {
         log_error(inst, "%s: currentCommunicationPoint = %.17g is not the FMU's time %.17g "
                   "(allowed deviation 1e-9 max(1, |t|))", function, t, inst->s.time);
         return STATUS_ERROR;

@@ -132,6 +132,13 @@ struct Instance {
     ModelConst constants;   /* derived from the parameters by model_prepare */
     int constants_valid;
     int outputs_valid;      /* calculated outputs in s.real match the state */
+    /* With outputs_valid: the derivatives in s.real are f(t, x, u) at the state's time, exactly as a fixed-step
+     * method evaluates it there with the inputs held (set by a step whose inputs held; an input set since clears
+     * it), so the next step takes them as its first evaluation. */
+    int derivatives_current;
+    /* Right-hand sides one substep of the chosen method takes at most, 0 until step_to computes it for the
+     * constants (ensure_constants clears it): its work bound per call without counting each call's work. */
+    double substep_work;
     Interface type;
     char *name;
     MessageSink emit;
@@ -191,6 +198,13 @@ static inline int all_finite(const double *values, int n)
     }
     if (i < n) even += values[i] - values[i];
     return even + odd == 0.0;
+}
+
+/* all_finite over the values a step or an evaluation computes (states, derivatives, outputs), leaving out the
+ * parameters and inputs, which their setters checked. */
+static inline int computed_finite(const double *real)
+{
+    return all_finite(real, SET_REALS_BEGIN) && all_finite(real + SET_REALS_END, N_REAL - SET_REALS_END);
 }
 /* The name of Real variable k (its value reference), for messages. */
 INTERNAL const char *real_variable_name(int k);

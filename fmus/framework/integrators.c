@@ -242,23 +242,31 @@ ENGINE_INLINE int rejected(RightHandSide *f, double t, double *x, const double *
 }
 
 /* The loop steps a local copy of x: no store through x can then alias the model's constants, which the
- * compiler keeps out of the loop. */
+ * compiler keeps out of the loop. Each substep's first stage is evaluated at the end of the substep before it, the
+ * first one's before the loop, where the previous call's end check may give it: the loop's body stays one copy. */
 ENGINE_INLINE int64_t runge_kutta_steps(RightHandSide *f, int mode, const ButcherTableau *tab, double *x, double t0,
                                        double hs, int64_t first, int64_t n, int check_each)
 {
     const Evaluator e = evaluator_of(f);
     const StepWeights w = step_weights(tab, hs);
     double state[STATE_SLOTS], f0[STATE_SLOTS], saved[STATE_SLOTS];
-    int64_t i, evaluated = n;
+    int64_t i = first, evaluated = n;
     memcpy(state, x, sizeof state);
-    for (i = first; i < first + n; i++) {
-        const double t = t0 + (double)i * hs;
-        if (check_each) memcpy(saved, state, sizeof saved);
-        evaluate(&e, mode, t, state, f0);
-        runge_kutta_step(&e, mode, tab, &w, t, state, f0, NULL);
-        if (check_each && rejected(f, t + hs, state, saved)) {
-            evaluated = i - first + 1;
-            break;
+    if (n > 0) {
+        if (first == 0 && f->start_slope)
+            memcpy(f0, f->start_slope, sizeof f0);
+        else
+            evaluate(&e, mode, t0 + (double)first * hs, state, f0);
+        for (;;) {
+            const double t = t0 + (double)i * hs;
+            if (check_each) memcpy(saved, state, sizeof saved);
+            runge_kutta_step(&e, mode, tab, &w, t, state, f0, NULL);
+            if (check_each && rejected(f, t + hs, state, saved)) {
+                evaluated = i - first + 1;
+                break;
+            }
+            if (++i == first + n) break;
+            evaluate(&e, mode, t0 + (double)i * hs, state, f0);
         }
     }
     memcpy(x, state, sizeof state);
@@ -277,72 +285,97 @@ ENGINE_INLINE int64_t runge_kutta_loop(RightHandSide *f, int mode, const Butcher
 
 /* Adams-Bashforth: x(k+1) = x(k) + h sum beta_j f(k-j). Until enough history exists the starter
  * Runge-Kutta method steps (the restarter after an event), and its first stage, f(k), goes into the history all the
- * same. */
+ * same. f(k) enters the ring given as f0 (NULL: evaluated here). */
+ENGINE_INLINE void adams_bashforth_slope(RightHandSide *f, const Evaluator *e, int mode, IntegratorMemory *m,
+                                        const double *x, double t, const double *f0)
+{
+    double *newest;
+    m->ab_head = m->ab_head + 1 == AB_MAX_STEPS ? 0 : m->ab_head + 1; /* no division: the ring's next slot */
+    newest = m->ab_history[m->ab_head];
+    if (f0)
+        memcpy(newest, f0, N_STATES * sizeof(double));
+    else
+        evaluate(e, mode, t, x, newest);
+    f->evaluations++;
+    if (m->ab_count < AB_MAX_STEPS) m->ab_count++;
+}
+
+/* The step from (t, x) once f(k) is the ring's newest entry. */
+ENGINE_INLINE void adams_bashforth_substep(RightHandSide *f, const Evaluator *e, int mode, const AdamsBashforth *ab,
+                                          IntegratorMemory *m, double *x, double t, double hs)
+{
+    double *newest = m->ab_history[m->ab_head];
+    int j, q;
+    if (m->ab_count < ab->steps) {
+        /* a call per tableau: on a tableau chosen at run time gcc -O2 -Wall cannot see that every stage
+         * summed was set, and warns */
+        const int restarting = m->ab_restarted;
+        if (m->ab_count + 1 == ab->steps) m->ab_restarted = 0; /* the history is whole after this step */
+        if (restarting) {
+            runge_kutta_step_of(e, mode, ab->restarter, t, hs, x, newest, NULL);
+            f->evaluations += (uint64_t)(ab->restarter->stages - 1);
+        } else {
+            runge_kutta_step_of(e, mode, ab->starter, t, hs, x, newest, NULL);
+            f->evaluations += (uint64_t)(ab->starter->stages - 1);
+        }
+    } else {
+        /* the past slopes f(k - j), their ring positions found once per step rather than once per state */
+        const double *past[AB_MAX_STEPS];
+        UNROLL for (j = 0; j < ab->steps; j++)
+            past[j] = m->ab_history[m->ab_head >= j ? m->ab_head - j : m->ab_head - j + AB_MAX_STEPS];
+        if (!ab->corrected) {
+            UNROLL for (q = 0; q < N_STATES; q++) {
+                double sum = ab->beta[0] * newest[q];
+                UNROLL for (j = 1; j < ab->steps; j++) sum += ab->beta[j] * past[j][q];
+                x[q] += hs * sum;
+            }
+        } else { /* predict, evaluate, correct */
+            double predicted[STATE_SLOTS], f_predicted[STATE_SLOTS];
+            UNROLL for (q = 0; q < N_STATES; q++) {
+                double sum = ab->beta[0] * newest[q];
+                UNROLL for (j = 1; j < ab->steps; j++) sum += ab->beta[j] * past[j][q];
+                predicted[q] = x[q] + hs * sum;
+            }
+            evaluate(e, mode, t + hs, predicted, f_predicted);
+            f->evaluations++;
+            UNROLL for (q = 0; q < N_STATES; q++) {
+                double sum = ab->moulton[0] * f_predicted[q] + ab->moulton[1] * newest[q];
+                UNROLL for (j = 1; j + 1 < ab->steps; j++) sum += ab->moulton[j + 1] * past[j][q];
+                x[q] += hs * sum;
+            }
+        }
+    }
+}
+
+/* The substeps, each one's f(k) taken at the end of the one before (as in runge_kutta_steps). A checking pass saves
+ * x and the memory before f(k) enters the ring, so that a rejected substep leaves both as they were. */
 ENGINE_INLINE int64_t adams_bashforth_loop(RightHandSide *f, int mode, const AdamsBashforth *ab, IntegratorMemory *m,
                                            double *x, double t0, double hs, int64_t first, int64_t n, int check_each)
 {
     const Evaluator e = evaluator_of(f);
-    double saved[STATE_SLOTS];
+    double saved[STATE_SLOTS] = {0}; /* set before use where check_each; gcc cannot see that */
     IntegratorMemory saved_memory;
-    int64_t i;
-    int j, q;
-    for (i = first; i < first + n; i++) {
+    int64_t i = first;
+    if (n <= 0) return 0;
+    if (check_each) {
+        memcpy(saved, x, sizeof saved);
+        saved_memory = *m;
+    }
+    adams_bashforth_slope(f, &e, mode, m, x, t0 + (double)first * hs, first == 0 ? f->start_slope : NULL);
+    for (;;) {
         const double t = t0 + (double)i * hs;
-        double *newest;
-        if (check_each) {
-            memcpy(saved, x, sizeof saved);
-            saved_memory = *m;
-        }
-        m->ab_head = m->ab_head + 1 == AB_MAX_STEPS ? 0 : m->ab_head + 1; /* no division: the ring's next slot */
-        newest = m->ab_history[m->ab_head];
-        evaluate(&e, mode, t, x, newest);
-        f->evaluations++;
-        if (m->ab_count < AB_MAX_STEPS) m->ab_count++;
-        if (m->ab_count < ab->steps) {
-            /* a call per tableau: on a tableau chosen at run time gcc -O2 -Wall cannot see that every stage
-             * summed was set, and warns */
-            const int restarting = m->ab_restarted;
-            if (m->ab_count + 1 == ab->steps) m->ab_restarted = 0; /* the history is whole after this step */
-            if (restarting) {
-                runge_kutta_step_of(&e, mode, ab->restarter, t, hs, x, newest, NULL);
-                f->evaluations += (uint64_t)(ab->restarter->stages - 1);
-            } else {
-                runge_kutta_step_of(&e, mode, ab->starter, t, hs, x, newest, NULL);
-                f->evaluations += (uint64_t)(ab->starter->stages - 1);
-            }
-        } else {
-            /* the past slopes f(k - j), their ring positions found once per step rather than once per state */
-            const double *past[AB_MAX_STEPS];
-            UNROLL for (j = 0; j < ab->steps; j++)
-                past[j] = m->ab_history[m->ab_head >= j ? m->ab_head - j : m->ab_head - j + AB_MAX_STEPS];
-            if (!ab->corrected) {
-                UNROLL for (q = 0; q < N_STATES; q++) {
-                    double sum = ab->beta[0] * newest[q];
-                    UNROLL for (j = 1; j < ab->steps; j++) sum += ab->beta[j] * past[j][q];
-                    x[q] += hs * sum;
-                }
-            } else { /* predict, evaluate, correct */
-                double predicted[STATE_SLOTS], f_predicted[STATE_SLOTS];
-                UNROLL for (q = 0; q < N_STATES; q++) {
-                    double sum = ab->beta[0] * newest[q];
-                    UNROLL for (j = 1; j < ab->steps; j++) sum += ab->beta[j] * past[j][q];
-                    predicted[q] = x[q] + hs * sum;
-                }
-                evaluate(&e, mode, t + hs, predicted, f_predicted);
-                f->evaluations++;
-                UNROLL for (q = 0; q < N_STATES; q++) {
-                    double sum = ab->moulton[0] * f_predicted[q] + ab->moulton[1] * newest[q];
-                    UNROLL for (j = 1; j + 1 < ab->steps; j++) sum += ab->moulton[j + 1] * past[j][q];
-                    x[q] += hs * sum;
-                }
-            }
-        }
+        adams_bashforth_substep(f, &e, mode, ab, m, x, t, hs);
         if (check_each && rejected(f, t + hs, x, saved)) {
             *m = saved_memory;
             return i - first;
         }
+        if (++i == first + n) return n;
+        if (check_each) {
+            memcpy(saved, x, sizeof saved);
+            saved_memory = *m;
+        }
+        adams_bashforth_slope(f, &e, mode, m, x, t0 + (double)i * hs, NULL);
     }
-    return n;
 }
 
 /* Dense LU factorization with partial pivoting, in place (row-major n x n); 0 when singular. */
@@ -886,7 +919,10 @@ static int64_t extrapolation_loop(RightHandSide *f, int mode, double *x, double 
     for (i = first; i < first + n; i++) {
         const double t = t0 + (double)i * hs;
         memcpy(saved, x, sizeof saved);
-        evaluate(&e, mode, t, x, f0);
+        if (i == 0 && f->start_slope) /* a test per step is nothing beside a step's many evaluations */
+            memcpy(f0, f->start_slope, N_STATES * sizeof(double));
+        else
+            evaluate(&e, mode, t, x, f0);
         gbs_step(f, &e, mode, t, hs, x, f0);
         f->evaluations += gbs_work(columns);
         if (check_each && rejected(f, t + hs, x, saved)) return i - first;

@@ -93,6 +93,10 @@ typedef struct {
     int taylor_cached;
     int gbs_columns; /* gbs: its column with the fixed step (tol = 0), its highest with tol > 0 */
     int single_step; /* rkf45, gbs: return after one accepted step (event checks at each of them) */
+    /* f(t0, x) at the call's start where the previous call's end check left it (NULL: not known): the fixed-step
+     * methods that start a substep from its slope take it as their first substep's first evaluation, which counts
+     * as an evaluation all the same (the check it came from never counted). */
+    const double *start_slope;
     /* J (N_STATES x N_STATES, row-major, J[i][j] = df_i/dx_j) and slope = f(t, x) at (t, x) with inputs u (NULL: all
      * zero). */
     void (*jacobian)(void *context, double t, const double *x, const double *u, double *J, double *slope);

@@ -56,6 +56,16 @@ Status step_to(Instance *inst, const char *function, double t, double H)
 
 #else
 
+/* ceil(q), without a library call where q fits an integer (most calls take one or a few substeps). */
+static double round_up(double q)
+{
+    if (q > -1e15 && q < 1e15) {
+        const double whole = (double)(int64_t)q; /* q rounded toward zero */
+        return whole < q ? whole + 1.0 : whole;
+    }
+    return ceil(q);
+}
+
 static Status finish(Instance *inst, double t, double H_done, double t_reached)
 {
     model_advance_inputs(inst->s.real, inst->s.input_derivative, H_done);
@@ -63,6 +73,7 @@ static Status finish(Instance *inst, double t, double H_done, double t_reached)
     inst->s.time = t_reached;
     inst->s.last_successful_time = t_reached;
     inst->outputs_valid = 0;
+    inst->derivatives_current = 0;
     (void)t;
     return STATUS_OK;
 }
@@ -135,6 +146,18 @@ static Status finish_with(Instance *inst, double t, double H, const double *chec
         inst->outputs_valid = 1;
     }
     return status;
+}
+
+/* The check of a fixed-step call's end state x = s.real at t. Where the inputs held it evaluates into the
+ * instance itself, as the method evaluates f (the inputs it held, none where all are zero): the outputs need no
+ * copy, and the derivatives serve as the next call's first evaluation. A failure leaves garbage there, which the
+ * failure's finish forgets. */
+static int end_state_good(Instance *inst, const RightHandSide *f, double t, double *checked)
+{
+    double *real = inst->s.real;
+    if (f->inputs_vary) return evaluate_at(inst, t, real, checked);
+    return model_state_ok(&inst->constants, real) &&
+           model_evaluate(&inst->constants, t, f->forces ? f->u0 : NULL, real) && computed_finite(real);
 }
 
 /* Why a state was refused, for a message: the requirement it breaks or the variable it makes non-finite
@@ -970,7 +993,6 @@ Status step_to(Instance *inst, const char *function, double t, double H)
     IntegratorMemory *memory = &s->integrator;
     const int solver = s->integer[INT_solver];
     const double h = s->real[VR_h];
-    const char *method = solver_name(solver);
     /* Reporting internal steps checks each of them as it is taken, so that no report shows a state
      * that a failed step would take back. */
     const int reporting = inst->report_step != NULL;
@@ -984,12 +1006,12 @@ Status step_to(Instance *inst, const char *function, double t, double H)
     gather_inputs(inst, f.u0);
     f.inputs_vary = 0;
     f.forces = 0;
-    for (i = 0; i < N_INPUTS; i++) {
+    for (i = 0; i < N_INPUTS; i++) { /* no branch per input */
         f.du[i] = s->input_derivative[i];
-        if (f.du[i] != 0.0) f.inputs_vary = 1;
-        if (f.u0[i] != 0.0) f.forces = 1;
+        f.inputs_vary |= f.du[i] != 0.0;
+        f.forces |= f.u0[i] != 0.0;
     }
-    if (f.inputs_vary) f.forces = 1;
+    f.forces |= f.inputs_vary;
     f.t0 = t;
     f.evaluations = 0;
     f.checks = 0;
@@ -1018,6 +1040,7 @@ Status step_to(Instance *inst, const char *function, double t, double H)
     f.kept_jacobian = NULL;
     f.refused_known = 0;
     f.context = inst;
+    f.start_slope = NULL;
 
     /* the method's settings are checked also where a closed form (model = linear) takes the step */
     if (solver == SOLVER_RKF45 && !(s->real[VR_tol] > 0.0)) {
@@ -1073,35 +1096,49 @@ Status step_to(Instance *inst, const char *function, double t, double H)
         if (reached < t_end) return stopped_short(inst, function, &f, solver, t, reached);
         return finish(inst, t, H, t_end);
     } else {
-        const double substeps = ceil(H / h - 1e-9);
+        const double substeps = round_up(H / h - 1e-9);
         const double planned = substeps < 1.0 ? 1.0 : substeps;
         int64_t n, first;
         double hs = H / planned;
-        /* the Adams-Bashforth history survives only if the substep stays the same (below) */
-        const int history = memory->ab_count > 0 && fabs(hs - memory->ab_step) <= 1e-10 * hs ? memory->ab_count : 0;
-        /* The work of the whole call, the state checks included: the method's evaluations, one check
-         * per block (or per substep when reporting), and the redo of one failing block with a check
-         * after each of its substeps. */
-        const double redone = fmin(planned, (double)CHECK_BLOCK);
-        const double work = evaluations_needed(solver, history, planned, &f) +
-                            (reporting ? planned : ceil(planned / CHECK_BLOCK) + evaluations_needed(solver, 0, redone, &f) +
-                                                   redone);
-        if (work > MAX_EVALUATIONS_PER_CALL) {
-            log_error(inst, "%s: communicationStepSize = %g with %s at h = %g needs %.0f right-hand-side "
-                      "evaluations, its state checks included (allowed at most %.0f per call): raise h or shorten the "
-                      "step", function, H, method, h, work, MAX_EVALUATIONS_PER_CALL);
-            return STATUS_ERROR;
+        /* The work of the whole call, the state checks included: the method's evaluations, one check per block
+         * (or per substep when reporting), and the redo of one failing block with a check after each of its
+         * substeps. At most twice the dearest substep's work plus two checks per substep: only a call near the
+         * bound is counted exactly. */
+        if (!(inst->substep_work > 0.0)) inst->substep_work = evaluations_needed(solver, 0, 1.0, &f);
+        if (planned * (2.0 * inst->substep_work + 2.0) > MAX_EVALUATIONS_PER_CALL) {
+            /* the Adams-Bashforth history survives only if the substep stays the same (below) */
+            const int history = memory->ab_count > 0 && fabs(hs - memory->ab_step) <= 1e-10 * hs ? memory->ab_count : 0;
+            const double redone = fmin(planned, (double)CHECK_BLOCK);
+            const double work = evaluations_needed(solver, history, planned, &f) +
+                                (reporting ? planned
+                                           : ceil(planned / CHECK_BLOCK) + evaluations_needed(solver, 0, redone, &f) +
+                                                 redone);
+            if (work > MAX_EVALUATIONS_PER_CALL) {
+                log_error(inst, "%s: communicationStepSize = %g with %s at h = %g needs %.0f right-hand-side "
+                          "evaluations, its state checks included (allowed at most %.0f per call): raise h or shorten "
+                          "the step", function, H, solver_name(solver), h, work, MAX_EVALUATIONS_PER_CALL);
+                return STATUS_ERROR;
+            }
         }
         n = substeps < 1.0 ? 1 : (int64_t)substeps;
         hs = H / (double)n;
         /* Adams-Bashforth history is only valid for the substep it was taken with. */
         if (memory->ab_count > 0 && fabs(hs - memory->ab_step) > 1e-10 * hs) memory->ab_count = memory->ab_restarted = 0;
         memory->ab_step = hs;
+        /* The last call's end check evaluated f where this call starts, with these inputs: its derivatives are the
+         * first substep's first evaluation (bit for bit: the same function of the same numbers). */
+        if (inst->outputs_valid && inst->derivatives_current && t == s->time && !f.inputs_vary
+#if HAS_LINEAR_MODEL
+            && !inst->constants.linear
+#endif
+        )
+            f.start_slope = s->real + N_STATES;
         /* Blocks of CHECK_BLOCK substeps, each checked at its end: a failure is redone, checking every
          * substep, from the last good block only. */
         for (first = 0; first < n; first += CHECK_BLOCK) {
             const int64_t count = n - first < CHECK_BLOCK ? n - first : CHECK_BLOCK;
-            const double t_block_end = first + count == n ? t + H : t + (double)(first + count) * hs;
+            const int last = first + count == n;
+            const double t_block_end = last ? t + H : t + (double)(first + count) * hs;
             double x_block[STATE_SLOTS];
             IntegratorMemory memory_block = *memory;
             int64_t done;
@@ -1109,8 +1146,10 @@ Status step_to(Instance *inst, const char *function, double t, double H)
             done = integrate_fixed(&f, solver, memory, x, t, hs, first, count, reporting);
             if (done == count) {
                 f.checks++;
-                if (evaluate_at(inst, t_block_end, x, checked)) continue;
+                if (last ? end_state_good(inst, &f, t_block_end, checked) : evaluate_at(inst, t_block_end, x, checked))
+                    continue;
             }
+            f.start_slope = NULL; /* the end check may have overwritten it */
             if (!reporting) { /* the reporting pass checked every substep already: x is the last good one */
                 f.unconverged = 0; /* the checking pass finds the first failure again, whatever it is */
                 memcpy(x, x_block, sizeof x_block);
@@ -1119,11 +1158,18 @@ Status step_to(Instance *inst, const char *function, double t, double H)
             }
             count_work(memory, &f);
             memory->ab_count = memory->ab_restarted = 0;
-            return fail(inst, function, t, first + done == n ? t + H : t + (double)(first + done) * hs, method, h,
+            return fail(inst, function, t, first + done == n ? t + H : t + (double)(first + done) * hs,
+                        solver_name(solver), h,
                         f.unconverged, f.refused_known ? f.refused : NULL);
         }
         count_work(memory, &f);
-        return finish_with(inst, t, H, checked, f.inputs_vary);
+        if (f.inputs_vary) return finish_with(inst, t, H, checked, 1);
+        {   /* the end check left the outputs and the derivatives in place */
+            const Status status = finish(inst, t, H, t + H);
+            inst->outputs_valid = 1;
+            inst->derivatives_current = 1;
+            return status;
+        }
     }
 }
 
