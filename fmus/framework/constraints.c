@@ -173,6 +173,7 @@ static int constrained_response(const double *L, const Geometry *geo, const int 
 {
     double Y[NC][NQ], W[NC * NC];
     int p, q, j;
+    if (m > NC) return 0; /* never (a set of the NC constraints): tells the compiler W's bound */
     for (p = 0; p < m; p++) {
         memcpy(Y[p], geo->G[set[p]], sizeof Y[p]);
         cholesky_solve(L, NQ, Y[p]);

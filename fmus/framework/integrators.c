@@ -56,10 +56,6 @@ INTERNAL_DATA const ButcherTableau TABLEAU_GAUSS_LEGENDRE4 = {
 INTERNAL_DATA const ButcherTableau TABLEAU_TRAPEZOID = {
     "trapezoid", 2, 2, {0.0, 1.0}, {{0.0, 0.0}, {0.5, 0.5}}, {0.5, 0.5}, {0}, 1, {0.0, 1.0}};
 
-static const char STORMER_VERLET_NAME[] = "stormer_verlet";
-static const char TAYLOR_NAME[] = "taylor";
-static const char GBS_NAME[] = "gbs";
-
 INTERNAL_DATA const AdamsBashforth AB2 = {"ab2", 2, {3.0 / 2, -1.0 / 2}, &TABLEAU_RK4, 0, {0}, &TABLEAU_EULER};
 INTERNAL_DATA const AdamsBashforth AB3 = {"ab3", 3, {23.0 / 12, -16.0 / 12, 5.0 / 12}, &TABLEAU_RK4, 0, {0}, &TABLEAU_MIDPOINT};
 INTERNAL_DATA const AdamsBashforth AB4 = {"ab4", 4, {55.0 / 24, -59.0 / 24, 37.0 / 24, -9.0 / 24}, &TABLEAU_RK4, 0, {0}, &TABLEAU_RK3};
@@ -681,9 +677,9 @@ const char *solver_name(int solver)
 {
     const ButcherTableau *tab = tableau_of(solver);
     const AdamsBashforth *ab = adams_bashforth_of(solver);
-    if (solver == SOLVER_STORMER_VERLET) return STORMER_VERLET_NAME;
-    if (solver == SOLVER_TAYLOR) return TAYLOR_NAME;
-    if (solver == SOLVER_GBS) return GBS_NAME;
+    if (solver == SOLVER_STORMER_VERLET) return "stormer_verlet";
+    if (solver == SOLVER_TAYLOR) return "taylor";
+    if (solver == SOLVER_GBS) return "gbs";
     return tab ? tab->name : ab ? ab->name : "unknown solver";
 }
 

@@ -362,7 +362,8 @@ static void adams_trial_step(EventStepper *e, const double *x0, double t, double
     const AdamsBashforth *ab = adams_bashforth_of(e->solver);
     const IntegratorMemory *m = e->history;
     const double sigma = theta / e->hs;
-    double nodes[AB_MAX_STEPS], w[AB_MAX_STEPS], slope[STATE_SLOTS], u[INPUT_SLOTS];
+    /* nodes set to 0 first: gcc cannot see that the loops below fill what adams_fraction reads */
+    double nodes[AB_MAX_STEPS] = {0}, w[AB_MAX_STEPS], slope[STATE_SLOTS], u[INPUT_SLOTS];
     int j, q;
     for (j = 0; j < ab->steps; j++) nodes[j] = -j;
     adams_fraction(nodes, ab->steps, sigma, w);
