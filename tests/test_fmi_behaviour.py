@@ -3,7 +3,9 @@ bad input, input and output derivatives."""
 from __future__ import annotations
 
 import ctypes
+import ctypes.util
 import math
+import platform
 import re
 import subprocess
 import sys
@@ -139,8 +141,55 @@ def test_a_call_that_starts_from_the_last_calls_end_evaluation_matches_a_fresh_s
             assert fmu.do_step(start, h) == OK
             t = fmu.last_successful_time()
             trajectory.append(fmu.get(*STATES.get(name, ("phi", "omega"))))
-        runs.append((trajectory, fmu.get("n_rhs", "n_steps")))
+        runs.append((np.array(trajectory).tobytes(), fmu.get("n_rhs", "n_steps")))  # bits: -0.0 differs from 0.0
     assert runs[0][1][1] == 40  # one substep per call
+    assert runs[0] == runs[1]
+
+
+def test_a_held_input_keeps_its_bits_and_the_next_call_starts_from_them(open_fmu):
+    """An input set to -0.0 stays -0.0 through steps (no u + 0 H, which is +0.0), so the derivatives one call
+    leaves are those the next call computes afresh, to the sign of a zero (on a start where every term is a zero)."""
+    runs = []
+    for restoring in (False, True):
+        fmu = open_fmu("SimplePendulum")
+        fmu.initialize(solver="euler", h=0.01, tol=0.0, phi=-0.0, omega=-0.0, g=-0.0, d=-0.0)
+        assert fmu.set(F_x=-0.0, F2_x=-0.0, F_y=1.0, F2_y=-1.0) == OK
+        trajectory = []
+        for k in range(3):
+            if restoring:
+                state = fmu.get_state()
+                fmu.set_state(state)
+                fmu.free_state(state)
+            assert fmu.do_step(0.01 * k, 0.01) == OK
+            trajectory.append(fmu.get("phi", "omega", "F_x", "F2_x"))
+        runs.append(np.array(trajectory).tobytes())
+        assert math.copysign(1.0, fmu.get("F_x")[0]) == -1.0
+    assert runs[0] == runs[1]
+
+
+@pytest.mark.skipif(sys.platform != "linux" or platform.machine() != "x86_64", reason="FE_UPWARD's value is x86's")
+def test_a_call_in_another_rounding_mode_evaluates_afresh(open_fmu):
+    """An importer that changes the rounding mode between two calls gets the second call computed in its mode
+    throughout: the derivatives the first call left (computed rounding to nearest) are not reused."""
+    libm = ctypes.CDLL(ctypes.util.find_library("m"))
+    upward = 0x800  # FE_UPWARD on x86
+    runs = []
+    for restoring in (False, True):
+        fmu = open_fmu("DoublePendulum")
+        fmu.initialize(solver="euler", h=0.01, tol=0.0)
+        assert fmu.do_step(0.0, 0.03) == OK
+        if restoring:
+            state = fmu.get_state()
+            fmu.set_state(state)
+            fmu.free_state(state)
+        nearest = libm.fegetround()
+        assert libm.fesetround(upward) == 0
+        try:
+            status = fmu.do_step(0.03, 0.03)
+        finally:
+            libm.fesetround(nearest)
+        assert status == OK
+        runs.append(np.array(fmu.get("phi1", "phi2", "omega1", "omega2")).tobytes())
     assert runs[0] == runs[1]
 
 

@@ -10,10 +10,12 @@
 #if defined(__SSE2__) || defined(_M_X64) || (defined(_M_IX86_FP) && _M_IX86_FP >= 2)
 #include <xmmintrin.h>
 #define FLUSH_BITS 0x8040u /* MXCSR: flush to zero (bit 15), denormals are zero (bit 6) */
+#define ROUNDING_BITS 0x6000u /* MXCSR: rounding control (bits 13, 14) */
 static unsigned long float_control(void) { return _mm_getcsr(); }
 static void set_float_control(unsigned long value) { _mm_setcsr((unsigned)value); }
 #elif defined(__aarch64__)
 #define FLUSH_BITS (1ul << 24) /* FPCR.FZ: subnormal operands and results are zero */
+#define ROUNDING_BITS (3ul << 22) /* FPCR.RMode */
 static unsigned long float_control(void)
 {
     unsigned long value;
@@ -22,8 +24,10 @@ static unsigned long float_control(void)
 }
 static void set_float_control(unsigned long value) { __asm__ __volatile__("msr fpcr, %0" : : "r"(value)); }
 #else
+#include <fenv.h>
 #define FLUSH_BITS 0u
-static unsigned long float_control(void) { return 0; }
+#define ROUNDING_BITS (~0ul)
+static unsigned long float_control(void) { return (unsigned long)fegetround(); } /* the rounding mode only */
 static void set_float_control(unsigned long value) { (void)value; }
 #endif
 
@@ -35,6 +39,8 @@ void flush_subnormals_begin(Instance *inst)
     inst->flushing = 1;
     if ((inst->caller_float_control & FLUSH_BITS) != FLUSH_BITS) set_float_control(inst->caller_float_control | FLUSH_BITS);
 }
+
+unsigned long float_rounding(const Instance *inst) { return inst->caller_float_control & ROUNDING_BITS; }
 
 void flush_subnormals_end(Instance *inst)
 {
@@ -128,7 +134,8 @@ void advance_inputs_linearly(double *real, const double *du, double H)
 {
 #if N_INPUTS > 0
     int i;
-    for (i = 0; i < N_INPUTS; i++) real[INPUT_VRS[i]] += H * du[i];
+    for (i = 0; i < N_INPUTS; i++) /* a held input keeps its bits: -0.0 + 0.0 would be +0.0 */
+        if (du[i] != 0.0) real[INPUT_VRS[i]] += H * du[i];
 #else
     (void)real;
     (void)du;
