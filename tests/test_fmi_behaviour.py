@@ -170,7 +170,8 @@ def test_a_held_input_keeps_its_bits_and_the_next_call_starts_from_them(open_fmu
 @pytest.mark.skipif(sys.platform != "linux" or platform.machine() != "x86_64", reason="FE_UPWARD's value is x86's")
 def test_a_call_in_another_rounding_mode_evaluates_afresh(open_fmu):
     """An importer that changes the rounding mode between two calls gets the second call computed in its mode
-    throughout: the derivatives the first call left (computed rounding to nearest) are not reused."""
+    throughout: the derivatives the first call left (computed rounding to nearest) are not reused (nor any in a
+    mode other than to nearest, where the compiler's rewrites may round two evaluations of f apart)."""
     libm = ctypes.CDLL(ctypes.util.find_library("m"))
     upward = 0x800  # FE_UPWARD on x86
     runs = []

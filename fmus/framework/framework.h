@@ -136,7 +136,6 @@ struct Instance {
      * method evaluates it there with the inputs held (set by a step whose inputs held; an input set since clears
      * it), so the next step takes them as its first evaluation. */
     int derivatives_current;
-    unsigned long derivatives_rounding; /* the rounding mode they were computed in (float_rounding) */
     /* Right-hand sides one substep of the chosen method takes at most, 0 until step_to computes it for the
      * constants (ensure_constants clears it): its work bound per call without counting each call's work. */
     double substep_work;
@@ -179,8 +178,8 @@ INTERNAL void flush_subnormals_begin(Instance *inst);
 INTERNAL void flush_subnormals_end(Instance *inst);
 INTERNAL void caller_float_control_begin(Instance *inst);
 INTERNAL void caller_float_control_end(Instance *inst);
-/* The importer's rounding mode during the step (its bits of the control word flush_subnormals_begin read). */
-INTERNAL unsigned long float_rounding(const Instance *inst);
+/* Whether the step runs rounding to nearest (the importer's mode, read by flush_subnormals_begin). */
+INTERNAL int rounding_to_nearest(const Instance *inst);
 
 /* instance.c. Logging: errors and discards are always reported; the rest only with debug logging on. */
 INTERNAL void log_error(Instance *inst, const char *fmt, ...);

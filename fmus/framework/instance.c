@@ -10,12 +10,14 @@
 #if defined(__SSE2__) || defined(_M_X64) || (defined(_M_IX86_FP) && _M_IX86_FP >= 2)
 #include <xmmintrin.h>
 #define FLUSH_BITS 0x8040u /* MXCSR: flush to zero (bit 15), denormals are zero (bit 6) */
-#define ROUNDING_BITS 0x6000u /* MXCSR: rounding control (bits 13, 14) */
+#define ROUNDING_BITS 0x6000u /* MXCSR: rounding control (bits 13, 14), 0 to nearest */
+#define TO_NEAREST 0u
 static unsigned long float_control(void) { return _mm_getcsr(); }
 static void set_float_control(unsigned long value) { _mm_setcsr((unsigned)value); }
 #elif defined(__aarch64__)
 #define FLUSH_BITS (1ul << 24) /* FPCR.FZ: subnormal operands and results are zero */
-#define ROUNDING_BITS (3ul << 22) /* FPCR.RMode */
+#define ROUNDING_BITS (3ul << 22) /* FPCR.RMode, 0 to nearest */
+#define TO_NEAREST 0ul
 static unsigned long float_control(void)
 {
     unsigned long value;
@@ -27,6 +29,7 @@ static void set_float_control(unsigned long value) { __asm__ __volatile__("msr f
 #include <fenv.h>
 #define FLUSH_BITS 0u
 #define ROUNDING_BITS (~0ul)
+#define TO_NEAREST ((unsigned long)FE_TONEAREST)
 static unsigned long float_control(void) { return (unsigned long)fegetround(); } /* the rounding mode only */
 static void set_float_control(unsigned long value) { (void)value; }
 #endif
@@ -40,7 +43,7 @@ void flush_subnormals_begin(Instance *inst)
     if ((inst->caller_float_control & FLUSH_BITS) != FLUSH_BITS) set_float_control(inst->caller_float_control | FLUSH_BITS);
 }
 
-unsigned long float_rounding(const Instance *inst) { return inst->caller_float_control & ROUNDING_BITS; }
+int rounding_to_nearest(const Instance *inst) { return (inst->caller_float_control & ROUNDING_BITS) == TO_NEAREST; }
 
 void flush_subnormals_end(Instance *inst)
 {

@@ -1126,11 +1126,11 @@ Status step_to(Instance *inst, const char *function, double t, double H)
         /* Adams-Bashforth history is only valid for the substep it was taken with. */
         if (memory->ab_count > 0 && fabs(hs - memory->ab_step) > 1e-10 * hs) memory->ab_count = memory->ab_restarted = 0;
         memory->ab_step = hs;
-        /* The last call's end check evaluated f where this call starts, with these inputs and in this rounding
-         * mode: its derivatives are the first substep's first evaluation (bit for bit: the same function of the
-         * same numbers). */
+        /* The last call's end check evaluated f where this call starts, with these inputs: its derivatives are the
+         * first substep's first evaluation (bit for bit: the same function of the same numbers, rounded to nearest;
+         * in another mode the compiler's rewrites, exact only to nearest, may round the two apart). */
         if (inst->outputs_valid && inst->derivatives_current && t == s->time && !f.inputs_vary &&
-            inst->derivatives_rounding == float_rounding(inst)
+            rounding_to_nearest(inst)
 #if HAS_LINEAR_MODEL
             && !inst->constants.linear
 #endif
@@ -1170,8 +1170,7 @@ Status step_to(Instance *inst, const char *function, double t, double H)
         {   /* the end check left the outputs and the derivatives in place */
             const Status status = finish(inst, t, H, t + H);
             inst->outputs_valid = 1;
-            inst->derivatives_current = 1;
-            inst->derivatives_rounding = float_rounding(inst);
+            inst->derivatives_current = rounding_to_nearest(inst);
             return status;
         }
     }
