@@ -1,7 +1,7 @@
 /* What a recorded point costs against the internal step it holds, where the communication step is the
  * internal step (a user recording every step):
  *
- *   record_cost LIBRARY GUID SOLVER_VR SOLVER H_VR H OUTPUTS MODE N
+ *   record_cost LIBRARY GUID SOLVER_VR SOLVER H_VR H OUTPUTS MODE N [LIBRARY3]
  *
  * LIBRARY is an FMI 2.0 Co-Simulation binary, SOLVER the value given to the Integer variable SOLVER_VR,
  * H the value of the Real variable H_VR (the internal step), OUTPUTS a comma-separated list of the Real
@@ -9,11 +9,15 @@
  *   steps   N internal steps inside one fmi2DoStep (the steps' own cost)
  *   record  N points through the harness's C recorder (harness/fmi/native/record_loop.c): per point one
  *           fmi2DoStep of H and one fmi2GetReal of OUTPUTS
- *   both    both, interleaved repeats, medians as JSON (nanoseconds per step and per point)
- * The FMU's entry and exit work (state checks, outputs, getters) and the recorder's loop are what the
- * second costs more than the first. */
+ *   reported N internal steps inside one fmi3DoStep of LIBRARY3 (the object's FMI 3.0 binary), each reported
+ *           through the intermediate-update callback, which reads OUTPUTS with fmi3GetFloat64 into a row
+ *   both    steps and record (and reported where LIBRARY3 is given), interleaved repeats, medians as JSON
+ *           (nanoseconds per step, per point and per reported step)
+ * The FMU's entry and exit work (state checks, outputs, getters) and the recorder's loop are what a
+ * point costs more than a step; a reported step costs the check, the outputs and the getter of each step. */
 #define _POSIX_C_SOURCE 200809L
 #include <dlfcn.h>
+#include <stdbool.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -32,8 +36,17 @@ typedef fmi2Status (*SetInteger)(fmi2Component, const fmi2ValueReference[], size
 typedef fmi2Status (*Call)(fmi2Component);
 typedef void (*FreeInstance)(fmi2Component);
 
+/* FMI 3.0's calls for the reported mode, in plain C types */
+typedef void (*IntermediateUpdate3)(void *, double, bool, bool, bool, bool, bool *, double *);
+typedef void *(*Instantiate3)(const char *, const char *, const char *, bool, bool, bool, bool, const unsigned *, size_t,
+                              void *, void (*)(void *, int, const char *, const char *), IntermediateUpdate3);
+typedef int (*SetInt64)(void *, const unsigned *, size_t, const long long *, size_t);
+typedef int (*EnterInitialization3)(void *, bool, double, double, bool, double);
+typedef int (*Call3)(void *);
+
 typedef struct {
     void *library;
+    void *library3; /* the FMI 3.0 binary, NULL where not given */
     const char *guid;
     unsigned solver_vr, h_vr, outputs[MAX_OUTPUTS];
     int solver, n_outputs;
@@ -105,6 +118,72 @@ static double run_steps(const Setting *s, long n)
     return seconds;
 }
 
+/* The reported mode's recorder: each accepted internal step's outputs into the next row. */
+typedef struct {
+    FmiCalls calls;
+    const unsigned *outputs;
+    int n_outputs, failed;
+    double *rows;
+    long row, capacity;
+} Reporter;
+
+static void report_row(void *environment, double t, bool set_requested, bool get_allowed, bool step_finished,
+                       bool can_return_early, bool *early_return_requested, double *early_return_time)
+{
+    Reporter *r = environment;
+    (void)t, (void)set_requested, (void)can_return_early, (void)early_return_time;
+    *early_return_requested = false;
+    if (!get_allowed || !step_finished) return;
+    if (r->row == r->capacity) { /* more steps reported than taken */
+        r->failed = 1;
+        return;
+    }
+    r->failed |= fmi_get_floats(&r->calls, r->outputs, r->n_outputs, r->rows + r->row++ * r->n_outputs) != FMI_OK;
+}
+
+static void logger3(void *environment, int status, const char *category, const char *message)
+{
+    (void)environment, (void)category;
+    fprintf(stderr, "[%d]: %s\n", status, message);
+}
+
+/* Seconds of n internal steps inside one fmi3DoStep, each reported and its outputs read. */
+static double run_reported(const Setting *s, long n)
+{
+    Reporter r;
+    const long long solver = s->solver;
+    double start, seconds, last = 0.0;
+    void *c;
+    memset(&r, 0, sizeof r);
+    r.outputs = s->outputs;
+    r.n_outputs = s->n_outputs;
+    r.capacity = n;
+    r.rows = malloc((size_t)(n + 1) * (size_t)s->n_outputs * sizeof *r.rows);
+    c = ((Instantiate3)found(s->library3, "fmi3InstantiateCoSimulation"))(
+        "record_cost", s->guid, "", false, false, false, false, NULL, 0, &r, logger3, report_row);
+    if (!r.rows || !c || ((SetInt64)found(s->library3, "fmi3SetInt64"))(c, &s->solver_vr, 1, &solver, 1) ||
+        ((SetFloat3)found(s->library3, "fmi3SetFloat64"))(c, &s->h_vr, 1, &s->h, 1) ||
+        ((EnterInitialization3)found(s->library3, "fmi3EnterInitializationMode"))(c, false, 0.0, 0.0, false, 0.0) ||
+        ((Call3)found(s->library3, "fmi3ExitInitializationMode"))(c)) {
+        fprintf(stderr, "record_cost: the FMI 3.0 FMU's set-up failed\n");
+        exit(2);
+    }
+    r.calls.component = c;
+    r.calls.fmi3 = 1;
+    r.calls.get_float = found(s->library3, "fmi3GetFloat64");
+    r.calls.do_step = found(s->library3, "fmi3DoStep");
+    r.calls.last_time = &last;
+    start = now();
+    if (fmi_do_step(&r.calls, 0.0, (double)n * s->h) != FMI_OK || r.failed || r.row != n) {
+        fprintf(stderr, "record_cost: fmi3DoStep reported %ld of %ld steps\n", r.row, n);
+        exit(2);
+    }
+    seconds = now() - start;
+    ((void (*)(void *))found(s->library3, "fmi3FreeInstance"))(c);
+    free(r.rows);
+    return seconds;
+}
+
 /* Seconds of n recorded points after the first, one internal step each. */
 static double run_record(const Setting *s, long n)
 {
@@ -143,14 +222,19 @@ int main(int argc, char **argv)
     const char *mode;
     char *cursor;
     long n;
-    if (argc != 10) {
-        fprintf(stderr, "usage: record_cost LIBRARY GUID SOLVER_VR SOLVER H_VR H OUTPUTS {steps|record|both} N\n");
+    if (argc != 10 && argc != 11) {
+        fprintf(stderr, "usage: record_cost LIBRARY GUID SOLVER_VR SOLVER H_VR H OUTPUTS {steps|record|reported|both} N "
+                "[LIBRARY3]\n");
         return 2;
     }
     memset(&s, 0, sizeof s);
     s.library = dlopen(argv[1], RTLD_NOW | RTLD_LOCAL);
     if (!s.library) {
         fprintf(stderr, "record_cost: cannot load %s: %s\n", argv[1], dlerror());
+        return 2;
+    }
+    if (argc == 11 && !(s.library3 = dlopen(argv[10], RTLD_NOW | RTLD_LOCAL))) {
+        fprintf(stderr, "record_cost: cannot load %s: %s\n", argv[10], dlerror());
         return 2;
     }
     s.guid = argv[2];
@@ -170,21 +254,30 @@ int main(int argc, char **argv)
         run_steps(&s, n);
     } else if (strcmp(mode, "record") == 0) {
         run_record(&s, n);
+    } else if (strcmp(mode, "reported") == 0 && s.library3) {
+        run_reported(&s, n);
     } else if (strcmp(mode, "both") == 0) {
-        double steps[ROUNDS], points[ROUNDS], ratio[ROUNDS];
+        double steps[ROUNDS], points[ROUNDS], ratio[ROUNDS], reported[ROUNDS], reported_ratio[ROUNDS];
         int r;
-        for (r = 0; r < ROUNDS; r++) { /* interleaved: the machine's noise falls on both alike */
+        for (r = 0; r < ROUNDS; r++) { /* interleaved: the machine's noise falls on all alike */
             steps[r] = run_steps(&s, n);
             points[r] = run_record(&s, n);
             ratio[r] = points[r] / steps[r];
+            reported[r] = s.library3 ? run_reported(&s, n) : 0.0;
+            reported_ratio[r] = reported[r] / steps[r];
         }
-        printf("{\"ns_per_step\": %.2f, \"ns_per_point\": %.2f, \"point_to_step\": %.3f}\n",
-               1e9 * median(steps, ROUNDS) / (double)n, 1e9 * median(points, ROUNDS) / (double)n,
-               median(ratio, ROUNDS));
+        printf("{\"ns_per_step\": %.2f, \"ns_per_point\": %.2f, \"point_to_step\": %.3f", 1e9 * median(steps, ROUNDS) / (double)n,
+               1e9 * median(points, ROUNDS) / (double)n, median(ratio, ROUNDS));
+        if (s.library3)
+            printf(", \"ns_per_reported\": %.2f, \"reported_to_step\": %.3f", 1e9 * median(reported, ROUNDS) / (double)n,
+                   median(reported_ratio, ROUNDS));
+        printf("}\n");
     } else {
-        fprintf(stderr, "record_cost: unknown mode %s: expected steps, record or both\n", mode);
+        fprintf(stderr, "record_cost: unknown mode %s: expected steps, record, both or (with LIBRARY3) reported\n",
+                mode);
         return 2;
     }
+    if (s.library3) dlclose(s.library3);
     dlclose(s.library);
     return 0;
 }

@@ -165,6 +165,71 @@ def test_intermediate_updates_follow_the_accepted_rkf45_steps(fmi3_paths, fmi3_u
     assert np.allclose([phi for _, phi in ends], plain["phi"][1:], rtol=0, atol=1e-12)
 
 
+def long_call(fmi3_paths, fmi3_unzipped, name: str, settings: dict, steps: int, refs: list[int], report: bool):
+    """One fmi3DoStep over `steps` internal steps: every Real output of `refs` read at each report (when `report`),
+    and at the end; the end's n_rhs and n_steps."""
+    reported: list[list[float]] = []
+    holder = {}
+
+    def intermediate(environment, t, set_requested, get_allowed, step_finished, can_return_early, early, early_time):
+        if get_allowed and step_finished:
+            reported.append(holder["fmu"].getFloat64(refs))
+
+    fmu = slave(fmi3_paths, fmi3_unzipped, name, **({"intermediateUpdate": intermediate} if report else {}))
+    holder["fmu"] = fmu
+    variables = references(fmi3_paths[name])
+    fmu.setInt64([variables["solver"]], [settings["solver"]])
+    for key, value in settings.items():
+        if key != "solver":
+            fmu.setFloat64([variables[key]], [value])
+    fmu.enterInitializationMode(startTime=0.0)
+    fmu.exitInitializationMode()
+    fmu.doStep(0.0, steps * settings["h"])
+    end = fmu.getFloat64(refs)
+    counters = list(fmu.getUInt64([variables["n_rhs"], variables["n_steps"]]))
+    fmu.terminate()
+    fmu.freeInstance()
+    return reported, end, counters
+
+
+def bits(values) -> np.ndarray:
+    """Doubles as their bit patterns: equal only where every bit is (-0.0 is not 0.0)."""
+    return np.asarray(values, dtype=np.float64).view(np.uint64)
+
+
+@pytest.mark.parametrize("name, inputs", [("SimplePendulum", {"F_x": 0.3}), ("SimplePendulum", {}),
+                                          ("KapitzaPendulum", {})])
+@pytest.mark.parametrize("method", ["heun", "rk4", "ab5", "abm4", "gbs", "gauss_legendre4"])
+def test_reported_steps_are_the_steps_of_one_call_each_bit_for_bit(open_fmu, fmi3_paths, fmi3_unzipped, name, inputs,
+                                                                  method):
+    """One fmi3DoStep of 300 internal steps (a check block of 256 and the rest), every Real output read at each
+    step's report: the end is that of the same call without a callback, and (but for gauss_legendre4, whose Newton
+    iteration starts each step from the step before inside a call) each step's outputs are those of 300
+    fmi2DoStep calls of one step each, read after each call. At h = 2^-7 every time is exact in all three, so the
+    comparisons are of bits. With a held force (the model's force terms) and without, and on the Kapitza pendulum,
+    whose right-hand side depends on t."""
+    h, steps = 2.0 ** -7, 300
+    settings = {"solver": solver(method), "h": h, "tol": 0.0 if method == "gbs" else 1e-8, **inputs}
+    outputs = [v for v in read_model_description(str(fmi3_paths[name])).modelVariables
+               if v.causality == "output" and v.type == "Float64"]
+    refs = [v.valueReference for v in outputs]
+    reported, end, counters = long_call(fmi3_paths, fmi3_unzipped, name, settings, steps, refs, report=True)
+    _, quiet_end, quiet_counters = long_call(fmi3_paths, fmi3_unzipped, name, settings, steps, refs, report=False)
+    assert len(reported) == steps
+    assert np.array_equal(bits(end), bits(reported[-1]))
+    assert np.array_equal(bits(end), bits(quiet_end)) and counters == quiet_counters
+    if method == "gauss_legendre4":
+        return
+    calls = open_fmu(name)
+    calls.initialize(**settings)
+    each_call = []
+    for i in range(steps):
+        assert calls.do_step(i * h, h) == 0
+        each_call.append(calls.get(*(v.name for v in outputs)))
+    assert np.array_equal(bits(reported), bits(each_call))
+    assert counters == calls.get("n_rhs", "n_steps")
+
+
 def test_the_callback_cannot_step_or_read_parameters(fmi3_paths, fmi3_unzipped):
     refs = references(fmi3_paths["SimplePendulum"])
     log = Log()

@@ -456,6 +456,14 @@ const VariableInfo *core_variable(unsigned int vr)
     return NULL;
 }
 
+size_t core_first_not_output(const unsigned int vr[], size_t n, unsigned int also_allowed)
+{
+    size_t i;
+    for (i = 0; i < n; i++)
+        if (vr[i] != also_allowed && (vr[i] >= N_REAL || REAL_VARIABLES[vr[i]].causality != CAUSALITY_OUTPUT)) break;
+    return i;
+}
+
 Status core_get_real(Instance *inst, const char *function, const unsigned int vr[], size_t nvr, double value[])
 {
     Status status;

@@ -243,6 +243,8 @@ INTERNAL Status core_exit_initialization(Instance *inst, const char *function);
 INTERNAL int core_arrays_present(Instance *inst, const char *function, size_t n, const void *a, const void *b);
 /* The variable with value reference vr (Real or Integer), NULL for none. */
 INTERNAL const VariableInfo *core_variable(unsigned int vr);
+/* The index of the first of n value references that is not a Real output (also_allowed aside), n when all are. */
+INTERNAL size_t core_first_not_output(const unsigned int vr[], size_t n, unsigned int also_allowed);
 INTERNAL Status core_get_real(Instance *inst, const char *function, const unsigned int vr[], size_t n, double value[]);
 INTERNAL Status core_set_real(Instance *inst, const char *function, const unsigned int vr[], size_t n,
                               const double value[]);
