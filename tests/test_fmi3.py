@@ -230,6 +230,43 @@ def test_reported_steps_are_the_steps_of_one_call_each_bit_for_bit(open_fmu, fmi
     assert counters == calls.get("n_rhs", "n_steps")
 
 
+@pytest.mark.parametrize("method", ["rk4", "ab5", "gbs"])
+def test_a_reported_call_that_fails_stops_where_the_same_call_without_reports_stops(fmi3_paths, fmi3_unzipped, method):
+    """The spherical pendulum's plane swing reaches the pole, where psi is undefined, inside one fmi3DoStep of 5 s at
+    h = 0.001: with reports and without, the call ends in fmi3Discard at the same last successful time with the same
+    message and state, and the last report shows that time and state (a refused step is never reported)."""
+    refs = references(fmi3_paths["SphericalPendulum"])
+    outputs = [v.valueReference for v in read_model_description(str(fmi3_paths["SphericalPendulum"])).modelVariables
+               if v.causality == "output" and v.type == "Float64"]
+    runs = []
+    for report in (True, False):
+        log = Log()
+        reported: list[tuple[float, list[float]]] = []
+        holder = {}
+
+        def intermediate(environment, t, set_requested, get_allowed, step_finished, can_return_early, early, when):
+            reported.append((t, holder["fmu"].getFloat64(outputs)))
+
+        fmu = slave(fmi3_paths, fmi3_unzipped, "SphericalPendulum", log=log,
+                    **({"intermediateUpdate": intermediate} if report else {}))
+        holder["fmu"] = fmu
+        fmu.setInt64([refs["solver"]], [solver(method)])
+        fmu.setFloat64([refs["h"], refs["psi_dot"], refs["tol"]], [0.001, 0.0, 0.0 if method == "gbs" else 1e-8])
+        fmu.enterInitializationMode(startTime=0.0)
+        fmu.exitInitializationMode()
+        flag, last = ctypes.c_bool(), ctypes.c_double()
+        status = raw(fmu, "fmi3DoStep")(ctypes.c_double(0.0), ctypes.c_double(5.0), ctypes.c_bool(True),
+                                        ctypes.byref(flag), ctypes.byref(flag), ctypes.byref(flag), ctypes.byref(last))
+        runs.append((status, last.value, log.last(), bits(fmu.getFloat64(outputs)), reported))
+        fmu.terminate()
+        fmu.freeInstance()
+    (status, last, message, state, reported), (quiet_status, quiet_last, quiet_message, quiet_state, _) = runs
+    assert status == quiet_status == 2  # fmi3Discard
+    assert 0.0 < last == quiet_last < 5.0 and message == quiet_message and "singular" in message
+    assert np.array_equal(state, quiet_state)
+    assert reported and reported[-1][0] == last and np.array_equal(bits(reported[-1][1]), state)
+
+
 def test_the_callback_cannot_step_or_read_parameters(fmi3_paths, fmi3_unzipped):
     refs = references(fmi3_paths["SimplePendulum"])
     log = Log()

@@ -97,26 +97,33 @@ static int evaluate_at(const Instance *inst, double t, const double *x, double *
     return model_evaluate(&inst->constants, t, u, real) && all_finite(real, N_REAL);
 }
 
-/* The importer's look at an accepted internal step: the instance shows the step's time, states and
- * outputs while report_step runs, and its own state afterwards. */
-static void report_internal_step(Instance *inst, double t, const double *real)
+/* The importer's look at an accepted internal step whose time, states and outputs s.real holds: the instance
+ * shows the step's time while report_step runs, and its own time and machine state afterwards. */
+static void report_in_place(Instance *inst, double t)
 {
-    double before[N_REAL];
     const double time = inst->s.time;
     const int32_t machine_state = inst->s.machine_state;
     const int outputs_valid = inst->outputs_valid;
-    memcpy(before, inst->s.real, sizeof before);
-    memcpy(inst->s.real, real, sizeof before);
     inst->s.time = t;
     inst->outputs_valid = 1;
     inst->s.machine_state = MS_INTERMEDIATE;
     caller_float_control_begin(inst);
     inst->report_step(inst, t);
     caller_float_control_end(inst);
-    memcpy(inst->s.real, before, sizeof before);
     inst->s.time = time;
     inst->s.machine_state = machine_state;
     inst->outputs_valid = outputs_valid;
+}
+
+/* The same for a step evaluated into real: shown in s.real while report_step runs, the instance's own values
+ * afterwards. */
+static void report_internal_step(Instance *inst, double t, const double *real)
+{
+    double before[N_REAL];
+    memcpy(before, inst->s.real, sizeof before);
+    memcpy(inst->s.real, real, sizeof before);
+    report_in_place(inst, t);
+    memcpy(inst->s.real, before, sizeof before);
 }
 
 int first_non_finite_at(const Instance *inst, double t, const double *x)
@@ -152,12 +159,56 @@ static Status finish_with(Instance *inst, double t, double H, const double *chec
  * instance itself, as the method evaluates f (the inputs it held, none where all are zero): the outputs need no
  * copy, and the derivatives serve as the next call's first evaluation. A failure leaves garbage there, which the
  * failure's finish forgets. */
-static int end_state_good(Instance *inst, const RightHandSide *f, double t, double *checked)
+#if defined(__GNUC__)
+__attribute__((always_inline)) /* in step_to's every call: a call of its own costs it more than the check's set-up */
+#endif
+static inline int end_state_good(Instance *inst, const RightHandSide *f, double t, double *checked)
 {
     double *real = inst->s.real;
     if (f->inputs_vary) return evaluate_at(inst, t, real, checked);
     return model_state_ok(&inst->constants, real) &&
            model_evaluate(&inst->constants, t, f->forces ? f->u0 : NULL, real) && computed_finite(real);
+}
+
+/* Whether a reporting pass takes its substeps one at a time (report_substeps): the methods whose substep starts from
+ * its slope and depends on nothing else of the substeps before it in the call (the Adams methods' history lives in
+ * the integrator memory), so that one at a time they give what the pass in one loop gives. */
+static int reports_one_at_a_time(int solver)
+{
+    return (steps_from_slope(solver) && solver != SOLVER_STORMER_VERLET) || adams_bashforth_of(solver) != NULL;
+}
+
+/* Substeps first ... first + count - 1 of hs from t, reported with the inputs held: each a pass of its own,
+ * checked as a call's end is (end_state_good: into the instance, as the method evaluates f) at the time the next
+ * one starts (t_end for the last), reported from there without a copy, the next starting from that check's
+ * derivatives as a call starts from its predecessor's. The substeps done; a refused one leaves x and the memory as
+ * they were before it, the refused state in f. */
+#if defined(__GNUC__)
+__attribute__((noinline)) /* kept out of step_to, whose calls without reports it would slow */
+#endif
+static int64_t report_substeps(Instance *inst, RightHandSide *f, int solver, IntegratorMemory *memory, double *x,
+                               double t, double hs, int64_t first, int64_t count, double t_end)
+{
+    const int reuse = rounding_to_nearest(inst);
+    int64_t k;
+    for (k = first; k < first + count; k++) {
+        const double t_k = t + (double)k * hs, t_next = k + 1 == first + count ? t_end : t + (double)(k + 1) * hs;
+        double saved[STATE_SLOTS];
+        IntegratorMemory saved_memory = *memory;
+        memcpy(saved, x, sizeof saved);
+        if (k > first) f->start_slope = reuse ? inst->s.real + N_STATES : NULL; /* checked at t_k */
+        else if (first > 0) f->start_slope = NULL;
+        f->checks++;
+        if (integrate_fixed(f, solver, memory, x, t_k, hs, 0, 1, 0) != 1 || !end_state_good(inst, f, t_next, NULL)) {
+            memcpy(f->refused, x, sizeof f->refused);
+            f->refused_known = 1;
+            memcpy(x, saved, sizeof saved);
+            *memory = saved_memory;
+            return k - first;
+        }
+        if (inst->s.machine_state == MS_STEP_COMPLETE) report_in_place(inst, t_next);
+    }
+    return count;
 }
 
 /* Why a state was refused, for a message: the requirement it breaks or the variable it makes non-finite
@@ -1146,7 +1197,12 @@ Status step_to(Instance *inst, const char *function, double t, double H)
             IntegratorMemory memory_block = *memory;
             int64_t done;
             memcpy(x_block, x, sizeof x_block);
-            done = integrate_fixed(&f, solver, memory, x, t, hs, first, count, reporting);
+            if (reporting && !f.inputs_vary && reports_one_at_a_time(solver)) {
+                done = report_substeps(inst, &f, solver, memory, x, t, hs, first, count, t_block_end);
+                if (done == count) continue; /* every substep checked in place, the last at t_block_end */
+            } else {
+                done = integrate_fixed(&f, solver, memory, x, t, hs, first, count, reporting);
+            }
             if (done == count) {
                 f.checks++;
                 if (last ? end_state_good(inst, &f, t_block_end, checked) : evaluate_at(inst, t_block_end, x, checked))
