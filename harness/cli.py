@@ -28,14 +28,14 @@ def positive_number(text: str) -> float:
     return value
 
 
-def count(largest: int):
+def count(largest: int, smallest: int = 1):
     def parse(text: str) -> int:
         try:
             value = int(text)
         except ValueError:
             raise argparse.ArgumentTypeError(f"{text!r} is not a whole number") from None
-        if not 1 <= value <= largest:
-            raise argparse.ArgumentTypeError(f"{value} must be between 1 and {largest}")
+        if not smallest <= value <= largest:
+            raise argparse.ArgumentTypeError(f"{value} must be between {smallest} and {largest}")
         return value
     parse.__name__ = "count"
     return parse
@@ -189,7 +189,7 @@ def command_run(args: argparse.Namespace) -> int:
                   f"{' and landed on the contacts' if landed else ''} (rows every {step:g} s)"
              if args.energy_tolerance
              else f"{result.macro_steps} macro steps landed on the contacts (rows every {step:g} s)"
-             if args.contact_steps else f"{result.macro_steps} macro steps of {step:g} s")
+             if landed else f"{result.macro_steps} macro steps of {step:g} s")
     print(f"wrote {out}: {steps}, {args.algorithm}, {result.extrapolation} "
           f"extrapolation; energy residual {result.energy_residual:.3e} J"
           + (f", {result.retries} retried steps" if result.retries else "")
@@ -444,11 +444,14 @@ def build_parser() -> argparse.ArgumentParser:
                         "macro step")
     p.add_argument("--energy-correction", action="store_true",
                    help="hand the energy the power bonds created back through the next steps' forces")
-    p.add_argument("--contact-steps", type=count(100_000), metavar="N",
+    p.add_argument("--contact-steps", type=count(100_000, 0), metavar="N",
                    help="land macro steps on the onsets of the Contact elements' contacts (rollback through FMU "
                         "states where the prediction fails) and resolve each contact in about N macro steps (with "
                         "--energy-tolerance: no step longer than the energy controller's either); --step is then "
-                        "the output interval and the largest macro step")
+                        "the output interval and the largest macro step. Default: 100 on a scene with Contact "
+                        "elements, unless --tolerance, --energy-tolerance or --on-discard retry chooses the steps; "
+                        "0: plain macro steps of --step. Whatever the steps, a step that creates more than half the "
+                        "energy the scene has in motion stops the run, naming the contact")
     p.add_argument("--out", default="run.csv", help="CSV file: time and <component>.<output> columns")
     p.add_argument("--reference", metavar="FILE.csv",
                    help="also write the scene's derived monolithic solution (objects joined by Springs and Contacts) "

@@ -35,7 +35,7 @@ def python_without(tmp_path: Path, *modules: str) -> Path:
     folder.mkdir()
     (folder / "sitecustomize.py").write_text(BLOCKER)
     wrapper = tmp_path / "python-without"
-    wrapper.write_text(f'#!/bin/sh\nPYTHONPATH="{folder}" BLOCKED_MODULES="{",".join(modules)}" '
+    wrapper.write_text(f'#!/bin/sh\nPYTHONPATH="{folder}${{PYTHONPATH:+:$PYTHONPATH}}" BLOCKED_MODULES="{",".join(modules)}" '
                        f'exec "{sys.executable}" "$@"\n')
     wrapper.chmod(0o755)
     return wrapper
@@ -201,3 +201,22 @@ def test_a_build_folder_configured_alike_is_only_built(tmp_path, monkeypatch, ca
     for call in calls:
         if not call.startswith("--build"):
             assert call.startswith(f"-S {PROJECT_ROOT} -B {tmp_path} ") and "-DCMAKE_BUILD_TYPE=Release" in call
+
+
+def test_a_python_with_sympy_alone_is_refused_naming_what_it_lacks(tmp_path):
+    """Without fmpy the FMU instance module hands a stand-in to ctypes at import, which took the check's
+    process down with a segmentation fault: the missing modules are named all the same."""
+    result = configure(tmp_path, python_without(tmp_path, "numpy", "fmpy", "scipy", "matplotlib"))
+    assert result.returncode != 0
+    message = " ".join(result.stderr.split())
+    assert "cannot import fmpy, numpy" in message and "Segmentation" not in message, message
+
+
+def test_an_import_that_ends_the_process_still_names_what_was_missing(tmp_path):
+    """A module that crashes after a missing import (an extension handed a stand-in): the names found before
+    the crash are the answer, with exit status 1."""
+    (tmp_path / "crashing.py").write_text("import numpy\nimport os\nos.abort()\n")
+    python = python_without(tmp_path, "numpy")
+    result = subprocess.run([str(python), str(ROOT / "tools" / "generator_imports.py"), "crashing"],
+                            capture_output=True, text=True, env={**os.environ, "PYTHONPATH": str(tmp_path)})
+    assert (result.returncode, result.stdout) == (1, "numpy\n"), result

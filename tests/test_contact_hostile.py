@@ -295,8 +295,12 @@ def test_contact_steps_never_step_through_a_stiff_contact(tmp_path, stiffness):
 
 def test_contact_steps_at_steel_stiffness_are_what_they_were(tmp_path):
     """The entries kept through a contact's blind steps change nothing where no blind step swings: the strike at
-    steel's stiffness takes its 1,149 macro steps, none redone."""
+    steel's stiffness takes its 1,048 macro steps, none redone (1,149 before the steps read an overlap below
+    1e-13 m as none, the Contact's own event rule: the balls at rest, whose gaps the strike closes first by a
+    rounding, no longer count as in contact from the first step that moves them)."""
     (c, _), (py, _) = _runs(_strike(tmp_path, 1.465e10), contact_steps=100)
-    assert (c.macro_steps, c.retries, py.macro_steps, py.retries) == (1149, 0, 1149, 0)
+    assert (c.macro_steps, c.retries, py.macro_steps, py.retries) == (1048, 0, 1048, 0)
     rates = np.array([c[f"ball{k}.omega"][-1] for k in range(1, 6)])
-    assert np.max(np.abs(rates - STEEL_RATES)) < 1e-5, rates
+    # within 3e-5 rad/s of the rates before that rule (2.3e-5), a little nearer the monolithic reference's
+    # (2.0e-4 from them against 2.2e-4)
+    assert np.max(np.abs(rates - STEEL_RATES)) < 3e-5, rates

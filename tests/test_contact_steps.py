@@ -52,7 +52,7 @@ def test_the_steps_land_on_the_strike_and_resolve_it(strike):
     assert isinstance(master.interval, ContactSteps)
     error = rate_error(result, reference)
     assert error < 1e-4 and result.macro_steps < 1500, (error, result.macro_steps)
-    fixed = run_system(system, MasterOptions(stop=STOP, step=STOP / result.macro_steps))
+    fixed = run_system(system, MasterOptions(stop=STOP, step=STOP / result.macro_steps, contact_steps=0))
     assert fixed.macro_steps == result.macro_steps and rate_error(fixed, reference) > 5 * error
     onsets = [t for t, _, what in events if what == "onset"]
     assert len(onsets) == 4
@@ -63,10 +63,11 @@ def test_the_steps_land_on_the_strike_and_resolve_it(strike):
 
 def test_more_steps_per_contact_converge_at_second_order(strike):
     """Linear extrapolation couples at second order: doubling the steps per contact divides the error by
-    about four (three to six)."""
+    about four (three to six; measured 3.65 and 3.31). From 100 steps per contact on: below, the balls that touch
+    at rest enter their contacts within a step of the strike's (measured 2.7e-4 at 25, 1.4e-4 at 50)."""
     system, reference, _ = strike
     errors = [rate_error(run_system(system, MasterOptions(stop=STOP, step=STOP / 4, contact_steps=n)), reference)
-              for n in (50, 100, 200)]
+              for n in (100, 200, 400)]
     assert all(3 < a / b < 6 for a, b in zip(errors, errors[1:])), errors
 
 
@@ -108,8 +109,10 @@ def test_a_system_without_contacts_is_refused_by_name(capsys, tmp_path):
 def test_contact_steps_choose_the_steps_alone():
     with pytest.raises(HarnessError, match="does not combine with --tolerance"):
         MasterOptions(stop=1.0, step=0.1, contact_steps=10, tolerance=1e-3)
-    with pytest.raises(HarnessError, match="from 1 to 100000"):
-        MasterOptions(stop=1.0, step=0.1, contact_steps=0)
+    with pytest.raises(HarnessError, match="from 1 to 100000, or 0 for plain macro steps"):
+        MasterOptions(stop=1.0, step=0.1, contact_steps=-1)
+    with pytest.raises(HarnessError, match="does not combine with --on-discard retry"):
+        MasterOptions(stop=1.0, step=0.1, contact_steps=10, on_discard="retry")
 
 
 @pytest.fixture(scope="module")

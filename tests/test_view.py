@@ -73,9 +73,10 @@ def page(scene: str) -> Path:
 
 
 def native_end(scene: str, stop: float, **options) -> dict[str, float]:
-    """Every output at `stop` from the harness's master over the native FMUs."""
+    """Every output at `stop` from the harness's master over the native FMUs, in plain macro steps of the scene's
+    step as the page takes them."""
     with load_system(SCENES / f"{scene}.json") as system:
-        master = Master(system, MasterOptions(stop=stop, step=system.step, **options))
+        master = Master(system, MasterOptions(stop=stop, step=system.step, **{"contact_steps": 0, **options}))
         try:
             result = master.run()
         finally:
@@ -538,3 +539,27 @@ def test_the_cache_keeps_the_modules_used_last(tmp_path, monkeypatch):
     assert sorted(p.name for p in tmp_path.iterdir()) == ["a.wasm", "c.wasm"]
     (tmp_path / "c.wasm").write_bytes(b"<html>")
     assert wasm._cached(tmp_path, "c") is None and wasm._cached(tmp_path, "missing") is None
+
+
+def test_the_page_stops_a_step_deep_into_a_contact_by_name(tmp_path):
+    """The page's master makes the harness's energy check (harness/cosim/contact_guard.py): Newton's cradle at plain
+    macro steps of a millisecond stops at the step that enters the strike, naming the contact and a step that would
+    do, at the time the harness's master stops (which the page's plain steps are, with --contact-steps 0)."""
+    needs_browser()
+    import re
+
+    from harness.scene.contact_scenes import pendulum_cradle
+    data = pendulum_cradle(5, length=0.5, mass=0.26, angle=-0.3, stop=0.5, step=1e-3)
+    for component in data["components"].values():
+        if component["fmu"] == "Contact":
+            component["start"]["k"] = 1.5e10
+    scene = tmp_path / "cradle.json"
+    scene.write_text(json.dumps(data))
+    assert main(["view", str(scene), "--out", str(tmp_path / "view")]) == 0
+    checked = drive("check", f"{(tmp_path / 'view' / 'index.html').as_uri()}?check=0.5")
+    message = checked.get("error", "")
+    assert message.startswith("contact12: the macro step of 0.00100 s from t = ") and "a macro step of at most" in message
+    with load_system(scene) as system:
+        with Master(system, MasterOptions(stop=0.5, step=1e-3, contact_steps=0)) as master:
+            stopped = master.run().stopped_at
+    assert float(re.search(r"from t = ([0-9.e+-]+) s", message).group(1)) == pytest.approx(stopped, abs=1e-9)

@@ -14,6 +14,8 @@ from __future__ import annotations
 import importlib
 import importlib.abc
 import importlib.machinery
+import signal
+import subprocess
 import sys
 from pathlib import Path
 
@@ -31,7 +33,9 @@ class _StandIn:
         return _StandIn()
 
     def __getattr__(self, name):
-        if name.startswith("__") and name.endswith("__"):
+        # no private or protocol names: ctypes asks an argument for `_as_parameter_` and, given a stand-in,
+        # asks that one again, until the process dies of the recursion
+        if name.startswith("_"):
             raise AttributeError(name)
         return _StandIn()
 
@@ -72,7 +76,8 @@ class _StandInFinder(importlib.abc.MetaPathFinder, importlib.abc.Loader):
         pass
 
 
-def missing_modules(modules: list[str]) -> list[str]:
+def missing_modules(modules: list[str], found=lambda name: None) -> list[str]:
+    """The missing top-level names; `found` is called with each as it is found."""
     sys.path.insert(0, str(SOURCE_ROOT))
     finder = _StandInFinder()
     sys.meta_path.insert(0, finder)
@@ -86,6 +91,7 @@ def missing_modules(modules: list[str]) -> list[str]:
             if not name or name in finder.names:
                 raise
             finder.names.add(name)
+            found(name)
             for loaded in [m for m in sys.modules if m.partition(".")[0] in {"harness", name}]:
                 del sys.modules[loaded]
         except Exception:  # a stand-in used in a way it cannot mimic: the names found so far are the answer
@@ -94,18 +100,51 @@ def missing_modules(modules: list[str]) -> list[str]:
             raise
 
 
+def check(modules: list[str]) -> int:
+    """The check itself: prints each missing name as it is found, so that a crash keeps them."""
+    names: list[str] = []
+
+    def found(name: str) -> None:
+        names.append(name)
+        print(name, flush=True)
+
+    try:
+        missing_modules(modules, found)
+    except Exception as error:  # noqa: BLE001 (a broken installation raises anything; CMake shows this line)
+        if names:
+            return 1
+        print(f"importing {', '.join(modules)} failed: {type(error).__name__}: {error}")
+        return 2
+    return 1 if names else 0
+
+
 def main(argv: list[str]) -> int:
+    """Runs the check in a child process: an extension module that crashes on a stand-in (a C library handed
+    one) ends the child, and the names it found before are the answer all the same."""
     if not argv:
         print("usage: generator_imports.py MODULE...", file=sys.stderr)
         return 2
-    try:
-        missing = missing_modules(argv)
-    except Exception as error:  # noqa: BLE001 (a broken installation raises anything; CMake shows this line)
-        print(f"importing {', '.join(argv)} failed: {type(error).__name__}: {error}")
+    if argv[0] == "--child":
+        return check(argv[1:])
+    child = subprocess.run([sys.executable, __file__, "--child", *argv], stdout=subprocess.PIPE, text=True)
+    if child.returncode == 2:
+        sys.stdout.write(child.stdout)
         return 2
-    for name in missing:
-        print(name)
-    return 1 if missing else 0
+    names = sorted(filter(None, child.stdout.split("\n")))
+    if names:
+        print("\n".join(names))
+        return 1
+    if child.returncode == 0:
+        return 0
+    print(f"importing {', '.join(argv)} ended the process ({signal_name(-child.returncode)})")
+    return 2
+
+
+def signal_name(number: int) -> str:
+    try:
+        return signal.Signals(number).name
+    except ValueError:
+        return f"status {-number}"
 
 
 if __name__ == "__main__":

@@ -149,6 +149,81 @@ export class Unit {
   }
 }
 
+/** The energy check of harness/cosim/contact_guard.py, with its settings from the scene: after each macro step,
+ * the scene's energy (each unit's energy output) risen above its lowest by more than `share` of the largest energy
+ * in motion seen before (every E_kin and every contact's stored E_pot) stops the run, the contact named. Off where
+ * no unit reports E_kin or no unit is a contact (outputs gap and gap_rate). */
+export class ContactGuard {
+  constructor(units, settings) {
+    this.settings = settings;
+    this.energies = units.filter((u) => u.energyIndex >= 0);
+    this.kinetic = units.filter((u) => u.realOutputs.includes("E_kin")).map((u) => [u, u.realOutputs.indexOf("E_kin")]);
+    this.watches = units.filter((u) => u.realOutputs.includes("gap") && u.realOutputs.includes("gap_rate"))
+      .map((u) => [u, ...["gap", "gap_rate", "E_pot"].map((n) => u.realOutputs.indexOf(n))]);
+    this.active = Boolean(settings && this.watches.length && this.kinetic.length && this.energies.length);
+    this.before = this.watches.map(() => [0, 0, 0]);
+  }
+
+  sums() {
+    let energy = 0, magnitude = 0, kinetic = 0;
+    for (const unit of this.energies) {
+      energy += unit.y[unit.energyIndex];
+      magnitude += Math.abs(unit.y[unit.energyIndex]);
+    }
+    for (const [unit, k] of this.kinetic) kinetic += unit.y[k];
+    for (const [unit, , , k] of this.watches) if (k >= 0) kinetic += unit.y[k];
+    return [energy, kinetic, magnitude];
+  }
+
+  remember() {
+    this.watches.forEach(([unit, gap, rate, stored], w) => {
+      this.before[w] = [unit.y[gap], unit.y[rate], stored >= 0 ? unit.y[stored] : 0];
+    });
+  }
+
+  begin() {
+    if (!this.active) return;
+    [this.low, this.scale, this.magnitude] = this.sums();
+    this.remember();
+  }
+
+  /** After the macro step [t, t + H]: null, or the message that stops the run. */
+  check(t, H) {
+    if (!this.active) return null;
+    const [energy, kinetic, magnitude] = this.sums();
+    this.magnitude = Math.max(this.magnitude, magnitude);
+    const created = energy - this.low;
+    if (created > this.settings.share * this.scale + this.settings.floor * this.magnitude) {
+      return this.message(t, H, created);
+    }
+    this.low = Math.min(this.low, energy);
+    this.scale = Math.max(this.scale, kinetic);
+    this.remember();
+    return null;
+  }
+
+  message(t, H, created) {
+    const rises = this.watches.map(([unit, , , stored], w) => (stored >= 0 ? unit.y[stored] - this.before[w][2] : 0));
+    const rates = this.watches.map(([unit, , rate], w) => Math.abs(unit.y[rate] - this.before[w][1]));
+    const pick = (values) => values.indexOf(Math.max(...values));
+    const w = Math.max(...rises) > 0 ? pick(rises) : pick(rates);
+    const [unit, gap, rate] = this.watches[w];
+    const depth = Math.max(-unit.y[gap], -this.before[w][0], 0);
+    const speed = Math.abs(this.before[w][1]) || Math.abs(unit.y[rate]);
+    const k = unit.setting("k"), exponent = unit.setting("exponent");
+    const { share, steps_per_contact: perContact, hertz_duration: hertz } = this.settings;
+    let text = `${unit.name}: the macro step of ${H.toPrecision(3)} s from t = ${t} s took the contact ` +
+      `${depth.toPrecision(3)} m deep and created ${created.toPrecision(3)} J, more than ${Math.round(share * 100)}% ` +
+      `of the energy the scene had in motion (${this.scale.toPrecision(3)} J)`;
+    if (k > 0 && exponent > 0 && speed > 0 && this.scale > 0) {
+      const duration = hertz * ((exponent + 1) * this.scale / k) ** (1 / (exponent + 1)) / speed;
+      text += `; the contact lasts about ${duration.toPrecision(2)} s: a macro step of at most ` +
+        `${(duration / perContact).toPrecision(1)} s would do`;
+    }
+    return text;
+  }
+}
+
 /** The scene's units stepped together. `scene` is the page's scene (harness/view/page.py). */
 export class Master {
   static async create(scene, options = {}) {
@@ -183,6 +258,7 @@ export class Master {
     }
     this.routes = this.routes.map((m) => [...m.entries()].map(([j, [outs, ins]]) => [j, outs, ins]));
     this.stepped = this.units.map(() => false);
+    this.guard = new ContactGuard(this.units, scene.guard);
     this.restart();
   }
 
@@ -201,6 +277,7 @@ export class Master {
       unit.readOutputs(this.linear);
       unit.accept(this.linear);
     }
+    this.guard.begin();
   }
 
   settle(tolerance = 1e-14, passes = 50) {
@@ -269,7 +346,7 @@ export class Master {
     for (const unit of units) unit.accept(this.linear);
     this.steps += 1;
     this.time = end;
-    return null;
+    return this.guard.check(t, H);
   }
 
   /** Steps to `stop` on the harness's grid: 0, H, 2 H, ..., the last point moved to stop; as the

@@ -1056,8 +1056,10 @@ Status core_set_input_derivatives(Instance *inst, const char *function, const un
     size_t i;
     if (!derivative_call_valid(inst, function, nvr, vr, order, value)) return STATUS_ERROR;
     for (i = 0; i < nvr; i++) {
+        if (!real_reference_known(inst, function, vr[i])) return STATUS_ERROR;
         if (input_index(vr[i]) < 0) {
-            log_error(inst, "%s: value reference %u is not a Real input", function, vr[i]);
+            log_error(inst, "%s: variable %s (value reference %u) is not a Real input (allowed: the %d Real inputs)",
+                      function, REAL_VARIABLES[vr[i]].name, vr[i], N_INPUTS);
             return STATUS_ERROR;
         }
         if (!isfinite(value[i])) {

@@ -317,8 +317,12 @@ static int readable_now(Instance *inst, const char *function, const fmi3ValueRef
     }
     i = core_first_not_output(vr, n, TIME_VR);
     if (i == n) return 1;
-    log_error(inst, "%s: value reference %u is not an output: in Intermediate Update Mode only the outputs "
-              "(intermediateUpdate = true) can be read", function, vr[i]);
+    if (core_variable(vr[i]) == NULL)
+        log_error(inst, "%s: unknown value reference %u: in Intermediate Update Mode only the outputs "
+                  "(intermediateUpdate = true) can be read", function, vr[i]);
+    else
+        log_error(inst, "%s: variable %s (value reference %u) is not an output: in Intermediate Update Mode only the "
+                  "outputs (intermediateUpdate = true) can be read", function, core_variable(vr[i])->name, vr[i]);
     return 0;
 }
 

@@ -43,6 +43,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from harness.cosim.algorithms import DONE, Exchange, Outcome
+from harness.cosim.contact_guard import ContactGuard
 from harness.cosim.controls import ends_interval
 from harness.cosim.energy import EnergyController
 from harness.cosim.unit import Snapshot, Unit
@@ -63,6 +64,9 @@ ENERGY_SMALLEST = 2.0 ** -20
 # REDO times shorter
 SWING = 1.0
 REDO = 8.0
+# A gap above minus this is no contact: the Contact element's event rule (its indicator is gap + 1e-13 m), so that
+# bodies touching at rest whose gap rounds to -1e-18 m are not read as a contact of no force and no frequency
+ROUNDING = 1e-13
 
 
 @dataclass(frozen=True)
@@ -72,10 +76,14 @@ class Watch:
     gap: int
     rate: int
 
+    def gap_now(self) -> float:
+        """The gap as the contact's own event rule reads it: an overlap shallower than the rounding is none."""
+        return float(self.unit.y_now[self.gap]) + ROUNDING
+
     def values(self, exchange: Exchange, last_rate: float | None, last_step: float) -> tuple[float, float, float]:
         """gap, gap_rate and the rate's derivative at the units' current time (the output derivative with
         linear extrapolation, else the last step's difference)."""
-        gap, rate = float(self.unit.y_now[self.gap]), float(self.unit.y_now[self.rate])
+        gap, rate = self.gap_now(), float(self.unit.y_now[self.rate])
         if exchange.linear:
             slope = float(self.unit.dy_now[self.rate])
         else:
@@ -104,8 +112,8 @@ class ContactSteps:
     module's text). Counts its steps and rollbacks in the tally."""
 
     def __init__(self, stepper, exchange: Exchange, largest: float, steps_per_contact: int | None, tally,
-                 energy: EnergyController | None = None):
-        self.stepper, self.exchange, self.tally, self.energy = stepper, exchange, tally, energy
+                 energy: EnergyController | None = None, guard: ContactGuard | None = None):
+        self.stepper, self.exchange, self.tally, self.energy, self.guard = stepper, exchange, tally, energy, guard
         self.units = exchange.units
         self.watches = contact_watches(self.units)
         if not self.watches:
@@ -204,6 +212,13 @@ class ContactSteps:
                 step, last = self._landed_step(t, step, last, state)
                 if step is None:
                     return last
+            if self.guard is not None and not self.guard.check(t, step):
+                if self._entry is not None and self._entry.redos < MAX_LANDINGS:  # a blind step: enter again
+                    self.guard.stop = None
+                    t = self._enter_again()
+                    continue
+                self.failure = self.guard.message(self.per_contact)
+                return Outcome(ERROR)
             self.tally.macro_steps += 1
             self.last_rates = [s[1] for s in state]
             self.last_step = step
@@ -235,7 +250,7 @@ class ContactSteps:
                 self.landings += 1
                 step = max(missed / 2, shortest)  # half way to the onset: the approach then lands on it as always
                 last, self._landing = False, False
-            if self._entry is None and any(float(w.unit.y_now[w.gap]) < 0.0 for w in self.watches):
+            if self._entry is None and any(w.gap_now() < 0.0 for w in self.watches):
                 self._entry, start = Entry(start, t, numbers), None  # into a contact: kept while it is blind
         finally:
             if start is not None:
@@ -284,7 +299,7 @@ class ContactSteps:
         not rolled back to: its force has faded to zero there.)"""
         shortest = None
         for watch, (g0, r0, _) in zip(self.watches, before):
-            g1 = float(watch.unit.y_now[watch.gap])
+            g1 = watch.gap_now()
             depth = 0.5 * abs(r0) * self.contact_step  # the approach of half a contact step, in gap
             if g1 < -depth and g0 > 0.0:
                 guess = step * g0 / (g0 - g1)

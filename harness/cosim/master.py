@@ -30,6 +30,7 @@ from typing import Callable
 import numpy as np
 
 from harness.cosim.algorithms import ALGORITHMS, Exchange
+from harness.cosim.contact_guard import ContactGuard
 from harness.cosim.contacts import ENERGY_SMALLEST, ContactSteps, contact_watches
 from harness.cosim.energy import BondedStep, EnergyController, EnergyStepControl, PowerBonds, order_of
 from harness.cosim.controls import Iteration, RetryOnDiscard, StepDoubling, Stepper, Tally
@@ -43,6 +44,7 @@ from harness.fmi.simulation import Progress, check_table_size, communication_gri
 from harness.interrupts import held
 
 EXTRAPOLATIONS = ("hold", "linear")
+DEFAULT_CONTACT_STEPS = 100  # macro steps per contact on a scene with Contact elements, unless the user chooses
 
 
 @dataclass
@@ -59,7 +61,10 @@ class MasterOptions:
     tolerance: float | None = None    # adapt the macro step by step doubling to this error per step
     energy_tol: float | None = None   # adapt the macro step to keep the energy the power bonds create [J] below this
     energy_correction: bool = False   # hand the energy a bond created back through the next step's force
-    contact_steps: int | None = None  # land macro steps on contacts' onsets, this many steps per contact
+    # land macro steps on contacts' onsets, this many steps per contact; 0: plain macro steps; None: DEFAULT_CONTACT_STEPS
+    # on a scene with Contact elements unless another control chooses the steps (--tolerance, --energy-tolerance,
+    # --on-discard retry)
+    contact_steps: int | None = None
     progress: bool = False
 
     def __post_init__(self) -> None:
@@ -80,12 +85,15 @@ class MasterOptions:
             raise HarnessError("--energy-tolerance chooses the macro steps without rollback; it does not combine with "
                                "--on-discard retry")
         if self.contact_steps is not None:
-            if not (isinstance(self.contact_steps, int) and 1 <= self.contact_steps <= 100_000):
+            if not (isinstance(self.contact_steps, int) and 0 <= self.contact_steps <= 100_000):
                 raise HarnessError(f"--contact-steps {self.contact_steps!r}: give a whole number of steps per contact "
-                                   "from 1 to 100000")
-            if self.tolerance is not None:
+                                   "from 1 to 100000, or 0 for plain macro steps")
+            if self.contact_steps and self.tolerance is not None:
                 raise HarnessError("--contact-steps chooses the macro steps itself: it does not combine with "
                                    "--tolerance (step doubling)")
+            if self.contact_steps and self.on_discard == "retry":
+                raise HarnessError("--contact-steps chooses the macro steps and rolls back itself: it does not combine "
+                                   "with --on-discard retry")
         for name in ("iterate_tol", "tolerance", "energy_tol"):
             value = getattr(self, name)
             if value is not None and not (value > 0 and math.isfinite(value)):
@@ -131,12 +139,14 @@ class Master:
                 for component in system.components:
                     with held():  # each instance made is in `units`, for free() to free
                         self.units.append(Unit(component, system, self.fmus, arena, answer))
-                self.options = dataclasses.replace(options, extrapolation=self._extrapolation(options))
+                self.options = dataclasses.replace(options, extrapolation=self._extrapolation(options),
+                                                   contact_steps=self._contact_steps(options))
                 self.exchange = Exchange(self.units, self.options.extrapolation == "linear")
                 for unit in self.units:
                     if unit.line is not None:
                         unit.line.active = int(self.exchange.linear)
                 self._check_states(options)
+                self.guard = ContactGuard(self.units, contact_watches(self.units))
         except BaseException:
             self.free()
             raise
@@ -167,16 +177,25 @@ class Master:
                 energy = EnergyController(o.energy_tol, o.stop - o.start, order_of(self.exchange), o.step,
                                           o.step * (ENERGY_SMALLEST if landing else 2.0 ** -10))
                 if landing:
-                    return ContactSteps(stepper, self.exchange, o.step, o.contact_steps, self.tally, energy)
+                    return ContactSteps(stepper, self.exchange, o.step, o.contact_steps, self.tally, energy, self.guard)
                 return EnergyStepControl(stepper, energy, self.tally)
         if o.contact_steps:
-            return ContactSteps(stepper, self.exchange, o.step, o.contact_steps, self.tally)
+            return ContactSteps(stepper, self.exchange, o.step, o.contact_steps, self.tally, guard=self.guard)
         if o.tolerance:
             order = 2 if o.extrapolation == "linear" or o.iterate_tol else 1
             return StepDoubling(stepper, self.exchange, o.tolerance, o.stop - o.start, order, self.tally)
         if o.on_discard == "retry":
             return RetryOnDiscard(stepper, self.exchange, o.max_halvings, self.tally)
         return stepper
+
+    def _contact_steps(self, options: MasterOptions) -> int:
+        """The steps per contact asked for, or by default DEFAULT_CONTACT_STEPS on a scene with Contact elements
+        whose steps no other control chooses; 0 for plain macro steps."""
+        if options.contact_steps is not None:
+            return options.contact_steps
+        chosen = options.tolerance is not None or options.energy_tol is not None or options.on_discard == "retry"
+        landing = contact_watches(self.units) and all(u.can_save for u in self.units)
+        return DEFAULT_CONTACT_STEPS if landing and not chosen else 0
 
     def _extrapolation(self, options: MasterOptions) -> str:
         """The extrapolation asked for, or by default linear unless a component receives inputs it cannot
@@ -236,6 +255,7 @@ class Master:
         has_energy = any(u.energy_index is not None for u in self.units)
         stopped_at, message, rows = None, None, 0
         self._initialize()
+        self.guard.begin()
         progress = Progress(options.stop) if options.progress else None
 
         def record(t: float) -> None:
@@ -259,7 +279,9 @@ class Master:
             rows, status, culprit_index = native.run(grid, table, energy, on_row, progress)
             if native.contacts is None:
                 tally.macro_steps = rows - 1
-            if status >= ERROR and culprit_index < 0:  # the contact steps stopped the run
+            if status >= ERROR and culprit_index < 0 and self.guard.stop is not None:  # a step created energy
+                stopped_at, message = grid[rows - 1], self.guard.message(options.contact_steps)
+            elif status >= ERROR and culprit_index < 0:  # the contact steps stopped the run
                 stopped_at, message = grid[rows - 1], self.interval.failure
             elif status >= ERROR:
                 culprit = self.units[culprit_index]
@@ -283,6 +305,10 @@ class Master:
             else:
                 outcome = self.interval.step(t, grid[k + 1] - t)
                 tally.macro_steps += outcome.status == OK
+            if outcome.status == OK and not isinstance(self.interval, ContactSteps) and \
+                    not self.guard.check(t, grid[k + 1] - t):  # ContactSteps checks each of its steps itself
+                stopped_at, message = t, self.guard.message(options.contact_steps)
+                break
             if outcome.status == ERROR:
                 stopped_at = t
                 message = getattr(self.interval, "failure", "") or \
@@ -314,7 +340,8 @@ class Master:
         if core is None:
             return None
         contacts = self.interval if o.contact_steps else None
-        loop = NativeLoop(core, self.units, o.algorithm == "gauss-seidel", self.exchange.linear, contacts, self.tally)
+        loop = NativeLoop(core, self.units, o.algorithm == "gauss-seidel", self.exchange.linear, contacts, self.tally,
+                          self.guard)
         return loop if contacts is None or loop.saves_states else None
 
     def free(self) -> None:

@@ -41,7 +41,7 @@ class ContactControl(ctypes.Structure):
                 ("entry_size", ctypes.c_double), ("entry_last_step", ctypes.c_double),
                 ("entry_macro_steps", ctypes.c_long), ("entry_n_landed", ctypes.c_long),
                 ("entry_rates", _double_p), ("entry_states", ctypes.POINTER(ctypes.c_void_p)),
-                ("entry_saved", _double_p)]
+                ("entry_saved", _double_p), ("rounding", ctypes.c_double)]
 
 
 class NativeContacts:
@@ -73,7 +73,7 @@ class NativeContacts:
                                                                                            saved))
         c.landed_capacity = self.LANDED_CAPACITY
         c.states = self._states
-        c.swing, c.redo = contacts.SWING, contacts.REDO
+        c.swing, c.redo, c.rounding = contacts.SWING, contacts.REDO, contacts.ROUNDING
         c.entry_rates, c.entry_saved = (a.ctypes.data_as(_double_p) for a in (entry_rates, entry_saved))
         c.entry_states = self._entry_states
         c.contact_step, c.last_step, c.size = control.contact_step, control.last_step, control.size
@@ -97,13 +97,56 @@ class NativeContacts:
             control.failure = control.too_short(c.failed_at)
 
 
+class EnergyGuard(ctypes.Structure):
+    """cosim_core.c's EnergyGuard: the settings and state of harness.cosim.contact_guard.ContactGuard."""
+    _fields_ = [("n_kinetic", ctypes.c_int), ("n_watches", ctypes.c_int), ("kinetic_unit", _int_p),
+                ("kinetic_index", _int_p), ("watch_unit", _int_p), ("watch_gap", _int_p), ("watch_rate", _int_p),
+                ("watch_stored", _int_p), ("share", ctypes.c_double), ("floor_share", ctypes.c_double),
+                ("low", ctypes.c_double), ("scale", ctypes.c_double), ("magnitude", ctypes.c_double),
+                ("before", _double_p), ("failed", ctypes.c_int), ("failed_at", ctypes.c_double),
+                ("failed_step", ctypes.c_double), ("created", ctypes.c_double), ("failed_scale", ctypes.c_double)]
+
+
+class NativeGuard:
+    """A ContactGuard handed to the C loop: its settings and state in an EnergyGuard, and back."""
+
+    def __init__(self, guard, units: list):
+        from harness.cosim import contact_guard
+        self.guard = guard
+        index = {id(unit): k for k, unit in enumerate(units)}
+        watches = guard.watches
+        self._arrays = [np.array([index[id(u)] for u, _ in guard.kinetic] or [0], dtype=np.intc),
+                        np.array([k for _, k in guard.kinetic] or [0], dtype=np.intc),
+                        np.array([index[id(w.unit)] for w in watches], dtype=np.intc),
+                        np.array([w.gap for w in watches], dtype=np.intc),
+                        np.array([w.rate for w in watches], dtype=np.intc),
+                        np.array([k for _, k in guard.stored], dtype=np.intc)]
+        self.before = guard.before  # shared: C writes the contacts' values at each step's start into it
+        g = self.struct = EnergyGuard()
+        g.n_kinetic, g.n_watches = len(guard.kinetic), len(watches)
+        g.kinetic_unit, g.kinetic_index, g.watch_unit, g.watch_gap, g.watch_rate, g.watch_stored = (
+            a.ctypes.data_as(_int_p) for a in self._arrays)
+        g.share, g.floor_share = contact_guard.SHARE, contact_guard.FLOOR
+        g.low, g.scale, g.magnitude = guard.low, guard.scale, guard.magnitude
+        g.before = self.before.ctypes.data_as(_double_p)
+
+    def hand_back(self) -> None:
+        """What the C loop left, into the guard."""
+        from harness.cosim.contact_guard import GuardStop
+        g, guard = self.struct, self.guard
+        guard.low, guard.scale, guard.magnitude = g.low, g.scale, g.magnitude
+        if g.failed and guard.stop is None:
+            guard.stop = GuardStop(g.failed_at, g.failed_step, g.created, g.failed_scale, guard.before.copy())
+
+
 def load_core() -> ctypes.CDLL | None:
     """The compiled core, or None when it has not been built (the master then loops in Python)."""
     library = load_library("cosim_core")
     if library is not None:
         library.cosim_run.argtypes = [ctypes.POINTER(CoreUnit), ctypes.c_int, _double_p, ctypes.c_long, ctypes.c_int,
                                       ctypes.c_int, _double_p, ctypes.c_long, _double_p, _int_p,
-                                      ctypes.POINTER(ContactControl), ctypes.POINTER(ctypes.c_long), _int_p]
+                                      ctypes.POINTER(ContactControl), ctypes.POINTER(EnergyGuard),
+                                      ctypes.POINTER(ctypes.c_long), _int_p]
         library.cosim_run.restype = ctypes.c_int
     return library
 
@@ -115,7 +158,8 @@ class NativeLoop:
 
     CHUNK_SECONDS = 0.1  # calls grow from a few rows to about this long, as the recorder's (harness/fmi/simulation.py)
 
-    def __init__(self, core: ctypes.CDLL, units: list, gauss_seidel: bool, linear: bool, contacts=None, tally=None):
+    def __init__(self, core: ctypes.CDLL, units: list, gauss_seidel: bool, linear: bool, contacts=None, tally=None,
+                 guard=None):
         from harness.fmi.native_calls import fill_calls
         self.core = core
         index = {unit.name: k for k, unit in enumerate(units)}
@@ -147,6 +191,7 @@ class NativeLoop:
         self.stepped = (ctypes.c_int * len(units))()
         self.gauss_seidel, self.linear = int(gauss_seidel), int(linear)
         self.contacts = NativeContacts(contacts, units) if contacts is not None else None
+        self.guard = NativeGuard(guard, units) if guard is not None and guard.active else None
         self.tally = tally
 
     @property
@@ -170,9 +215,12 @@ class NativeLoop:
                                              self.gauss_seidel, self.linear, table[first:].ctypes.data_as(_double_p),
                                              table.shape[1], energy[first:].ctypes.data_as(_double_p), self.stepped,
                                              ctypes.byref(self.contacts.struct) if self.contacts else None,
+                                             ctypes.byref(self.guard.struct) if self.guard else None,
                                              ctypes.byref(rows_done), ctypes.byref(culprit))
                 if self.contacts:
                     self.contacts.hand_back(self.tally)
+                if self.guard:
+                    self.guard.hand_back()
                 rows = first + rows_done.value
                 if on_row is not None:
                     for row in table[first + (1 if first else 0):rows]:

@@ -77,8 +77,16 @@ def dependencies(derivation: Derivation, initial: bool = False) -> dict[str, set
         # laws' energies join E_pot.
         for c in spec.coordinates:
             del result[f"der({c.velocity})"]
+        # A constraint's force holds the bodies wherever the states, the inputs and (for an object that moves with
+        # time) time take them: it depends on every one of those knowns, listed (in Initialization Mode: not listed)
+        every = {known[s] for s in q + v + list(derivation.inputs)}
+        if any(spec.time in sp.sympify(e).free_symbols for e in (derivation.M, derivation.f, derivation.Q, derivation.U,
+                                                                  *(terms.gap for terms in derivation.constraints))):
+            every.add("time")
         for constraint, terms in zip(spec.constraints, derivation.constraints):
             result[f"{constraint.name}_gap"] = of(terms.gap)
+            if not initial:
+                result[f"{constraint.name}_force"] = set(every)
             if constraint.compliant:  # the energy k delta^(exponent + 1) / (exponent + 1) the overlap stores
                 result["E_pot"] |= of(terms.gap) | of(constraint.stiffness)
         result["E"] = result["E_kin"] | result["E_pot"]

@@ -246,11 +246,13 @@ def model_description(derivation: Derivation) -> str:
 
 def dependency_attribute(listed: set[str] | None, index: dict[str, int]) -> str:
     """The FMI 2.0 dependencies attribute for the knowns `listed` by name (None: not known), as 1-based
-    indices. FMI 2.0 declares no variable for time, so an unknown that depends on time cannot list it:
-    it lists nothing, which the standard reads as "depends on every known", time among them."""
-    if listed is None or "time" in listed:
+    indices. These FMUs declare no variable for time, so FMI 2.0's independent variable is implicit: it has
+    no index to list, and an importer holds it known at every instant. An unknown that depends on time lists
+    the states and inputs it depends on beside it (listing nothing would read as "depends on every known",
+    the inputs among them, and show importers a feedthrough that is not there)."""
+    if listed is None:
         return ""
-    return ' dependencies="' + " ".join(str(k) for k in sorted(index[name] for name in listed)) + '"'
+    return ' dependencies="' + " ".join(str(k) for k in sorted(index[name] for name in listed - {"time"})) + '"'
 
 
 def _document(derivation: Derivation, variable_list: list[Variable], units, guid: str) -> str:

@@ -58,6 +58,35 @@ def pendulum_cradle(n: int = 5, length: float = 0.3, mass: float = 0.25, radius:
         "components": components, "connections": connections, "bonds": bonds}
 
 
+def ball_row(radii: list[float], masses: list[float], length: float = 0.5, angle: float = -0.3,
+             stiffness_scale: float = 1.0, stop: float = 0.5, step: float = 1e-3,
+             solver: str | None = None, h: float | None = None) -> dict:
+    """A row of SimplePendulum balls of the given radii and masses on strings of `length`, each pivot as far from
+    the next as their radii reach (they touch at rest, the gaps zero to a rounding), neighbours joined by Contact
+    elements of Hertz's steel stiffness times `stiffness_scale`; ball 1 starts at `angle`. The solver and its step
+    are the FMUs' defaults unless given."""
+    if len(radii) != len(masses) or len(radii) < 2:
+        raise ValueError("a row has at least two balls, each with a radius and a mass")
+    data = pendulum_cradle(len(radii), length=length, angle=angle, stop=stop, step=step)
+    pivots = [0.0]
+    for left, right in zip(radii, radii[1:]):
+        pivots.append(pivots[-1] + left + right)
+    for i, (radius, mass) in enumerate(zip(radii, masses)):
+        start = data["components"][f"ball{i + 1}"]["start"]
+        start.update(m=mass, anchor_x=pivots[i])
+        del start["solver"], start["h"]
+        start.update({name: value for name, value in (("solver", solver), ("h", h)) if value is not None})
+    for i in range(len(radii) - 1):
+        start = data["components"][f"contact{i + 1}{i + 2}"]["start"]
+        start.update(R_a=radii[i], R_b=radii[i + 1], a_x=pivots[i], b_x=pivots[i + 1],
+                     k=hertz_stiffness(radii[i], radii[i + 1]) * stiffness_scale)
+    data["name"] = f"a row of {len(radii)} balls"
+    data["description"] = (f"{len(radii)} steel balls of radii {', '.join(f'{r:g}' for r in radii)} m and masses "
+                           f"{', '.join(f'{m:g}' for m in masses)} kg on strings of {length:g} m, touching at rest; "
+                           f"ball 1 is let go from {angle:g} rad.")
+    return data
+
+
 def double_strikes_ball(radius: float = 0.05, angle: float = -0.6, stop: float = 1.5, step: float = 1e-5) -> dict:
     """A double pendulum (links of 1 m) whose tip, a steel ball, swings from `angle` into a steel ball of
     0.5 kg resting on a string of 2 m (a SimplePendulum: the string stays taut, its tension well above zero)."""

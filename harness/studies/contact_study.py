@@ -62,7 +62,7 @@ def masters(interval: float, quick: bool = False) -> list[tuple[str, str, dict]]
         for extrapolation in ("linear", "hold"):
             for h in fixed if extrapolation == "linear" else fixed[:3]:
                 runs.append((f"fixed step, {algorithm}, {extrapolation}", f"H = {h:g} s",
-                             dict(step=h, algorithm=algorithm, extrapolation=extrapolation)))
+                             dict(step=h, algorithm=algorithm, extrapolation=extrapolation, contact_steps=0)))
     for n in CONTACT_STEPS[:4] if quick else CONTACT_STEPS:
         runs.append(("contact steps", f"N = {n}", dict(step=interval, contact_steps=n)))
     for n in CORRECTED_STEPS:

@@ -20,6 +20,7 @@ from pathlib import Path
 
 import sympy as sp
 
+from harness.cosim import contact_guard
 from harness.cosim.master import MasterOptions, run_system
 from harness.cosim.system import System, component_files, load_system
 from harness.errors import HarnessError, where
@@ -197,6 +198,8 @@ def _payload(system: System, modules: dict[str, dict], keys: dict[Path, str], sp
         "step": system.step, "stop": system.stop, "frame_rate": frame_rate, "scale": camera.get("scale"),
         "layout": camera.get("layout", "together"),
         "algorithm": "gauss-seidel", "extrapolation": "linear", "max_points": MAX_POINTS,
+        "guard": {"share": contact_guard.SHARE, "floor": contact_guard.FLOOR,
+                  "steps_per_contact": contact_guard.STEPS_PER_CONTACT, "hertz_duration": contact_guard.HERTZ_DURATION},
         "modules": modules, "components": components,
         "connections": [[c.source, c.output, c.target, c.input] for c in system.connections],
     }

@@ -121,6 +121,62 @@ static int record(CoreUnit *units, int n_units, double t, double *row, double *e
     return CORE_OK;
 }
 
+/* The energy check of harness/cosim/contact_guard.py (ContactGuard), the same arithmetic in the same order: after
+ * each accepted macro step, the scene's energy E (each unit's energy output) risen above its lowest by more than
+ * `share` of the largest energy in motion K seen before (every E_kin and every contact's stored E_pot), beyond the
+ * rounding, stops the run. Python fills the settings and composes the message from what is left here. */
+typedef struct {
+    int n_kinetic, n_watches;
+    const int *kinetic_unit, *kinetic_index;                     /* the units' E_kin outputs */
+    const int *watch_unit, *watch_gap, *watch_rate, *watch_stored; /* per contact; watch_stored -1: no E_pot */
+    double share, floor_share;
+    double low, scale, magnitude;  /* carried from one call to the next */
+    double *before;                /* 3 per contact: gap, rate, stored energy at the step's start */
+    int failed;
+    double failed_at, failed_step, created, failed_scale;
+} EnergyGuard;
+
+static void guard_remember(EnergyGuard *g, const CoreUnit *units)
+{
+    int w;
+    for (w = 0; w < g->n_watches; w++) {
+        const CoreUnit *unit = &units[g->watch_unit[w]];
+        g->before[3 * w] = unit->y_now[g->watch_gap[w]];
+        g->before[3 * w + 1] = unit->y_now[g->watch_rate[w]];
+        g->before[3 * w + 2] = g->watch_stored[w] >= 0 ? unit->y_now[g->watch_stored[w]] : 0.0;
+    }
+}
+
+/* After an accepted macro step [t, t + H]: 0 where it created too much energy (g->failed set) */
+static int guard_check(EnergyGuard *g, const CoreUnit *units, int n_units, double t, double H)
+{
+    double energy = 0.0, magnitude = 0.0, kinetic = 0.0, created;
+    int k, w;
+    if (!g) return 1;
+    for (k = 0; k < n_units; k++)
+        if (units[k].energy_index >= 0) {
+            energy += units[k].y_now[units[k].energy_index];
+            magnitude += fabs(units[k].y_now[units[k].energy_index]);
+        }
+    for (k = 0; k < g->n_kinetic; k++) kinetic += units[g->kinetic_unit[k]].y_now[g->kinetic_index[k]];
+    for (w = 0; w < g->n_watches; w++)
+        if (g->watch_stored[w] >= 0) kinetic += units[g->watch_unit[w]].y_now[g->watch_stored[w]];
+    g->magnitude = fmax(g->magnitude, magnitude);
+    created = energy - g->low;
+    if (created > g->share * g->scale + g->floor_share * g->magnitude) {
+        g->failed = 1;
+        g->failed_at = t;
+        g->failed_step = H;
+        g->created = created;
+        g->failed_scale = g->scale;
+        return 0;
+    }
+    g->low = fmin(g->low, energy);
+    g->scale = fmax(g->scale, kinetic);
+    guard_remember(g, units);
+    return 1;
+}
+
 /* One macro step [t, t + H] of every unit (Jacobi or Gauss-Seidel); the outputs read become those at
  * the start of the next step. */
 static int macro_step(CoreUnit *units, int n_units, double t, double H, int gauss_seidel, int linear, int *stepped,
@@ -183,6 +239,7 @@ typedef struct {
     double *entry_rates;             /* n_watches */
     void **entry_states;             /* n_units */
     double *entry_saved;             /* as saved */
+    double rounding;                 /* a gap above minus this is no contact (contacts.py's ROUNDING) */
 } ContactControl;
 
 static void contact_values(const ContactControl *c, const CoreUnit *units, int linear)
@@ -194,7 +251,7 @@ static void contact_values(const ContactControl *c, const CoreUnit *units, int l
         double slope;
         if (linear) slope = unit->dy_now[c->watch_rate[w]];
         else slope = c->have_rates && c->last_step > 0 ? (rate - c->last_rates[w]) / c->last_step : 0.0;
-        c->scratch[3 * w] = unit->y_now[c->watch_gap[w]];
+        c->scratch[3 * w] = unit->y_now[c->watch_gap[w]] + c->rounding;
         c->scratch[3 * w + 1] = rate;
         c->scratch[3 * w + 2] = slope;
     }
@@ -247,7 +304,7 @@ static int contact_overshoot(const ContactControl *c, const CoreUnit *units, dou
     int w, found = 0;
     for (w = 0; w < c->n_watches; w++) {
         const double g0 = c->scratch[3 * w], r0 = c->scratch[3 * w + 1];
-        const double g1 = units[c->watch_unit[w]].y_now[c->watch_gap[w]];
+        const double g1 = units[c->watch_unit[w]].y_now[c->watch_gap[w]] + c->rounding;
         const double depth = 0.5 * fabs(r0) * c->contact_step;
         if (g1 < -depth && g0 > 0.0) {
             const double guess = step * g0 / (g0 - g1);
@@ -401,7 +458,7 @@ static int landed_step(ContactControl *c, CoreUnit *units, int n_units, double t
     }
     if (status == CORE_OK && !c->have_entry)
         for (w = 0; w < c->n_watches; w++)
-            if (units[c->watch_unit[w]].y_now[c->watch_gap[w]] < 0.0) {
+            if (units[c->watch_unit[w]].y_now[c->watch_gap[w]] + c->rounding < 0.0) {
                 for (k = 0; k < n_units; k++) values += 2 * units[k].n_out;
                 keep_entry(c, n_units, values, t, contact_step, size, last_step, have_rates, macro_steps, n_landed);
                 return status;
@@ -411,8 +468,8 @@ static int landed_step(ContactControl *c, CoreUnit *units, int n_units, double t
 }
 
 /* Covers [t, t_end] with contact steps */
-static int contact_steps(ContactControl *c, CoreUnit *units, int n_units, double t, double t_end, int gauss_seidel,
-                         int linear, int *stepped, int *culprit)
+static int contact_steps(ContactControl *c, EnergyGuard *guard, CoreUnit *units, int n_units, double t, double t_end,
+                         int gauss_seidel, int linear, int *stepped, int *culprit)
 {
     int w, status;
     while (t < t_end) {
@@ -446,6 +503,13 @@ static int contact_steps(ContactControl *c, CoreUnit *units, int n_units, double
             status = landed_step(c, units, n_units, t, &step, &last, &landing, gauss_seidel, linear, stepped, culprit);
         }
         if (status != CORE_OK) return status;
+        if (!guard_check(guard, units, n_units, t, step)) {
+            if (!c->have_entry || c->entry_redos == c->max_landings) return CORE_ERROR;
+            guard->failed = 0; /* a blind step into a contact: enter it again, as where it swung */
+            if ((status = enter_again(c, units, n_units, culprit)) != CORE_OK) return status;
+            t = c->entry_t;
+            continue;
+        }
         c->macro_steps++;
         for (w = 0; w < c->n_watches; w++) c->last_rates[w] = c->scratch[3 * w + 1];
         c->have_rates = 1;
@@ -458,10 +522,10 @@ static int contact_steps(ContactControl *c, CoreUnit *units, int n_units, double
 }
 
 /* contact_steps, and no FMU state kept beyond the interval (its rows are recorded) */
-static int contact_advance(ContactControl *c, CoreUnit *units, int n_units, double t, double t_end, int gauss_seidel,
-                           int linear, int *stepped, int *culprit)
+static int contact_advance(ContactControl *c, EnergyGuard *guard, CoreUnit *units, int n_units, double t, double t_end,
+                           int gauss_seidel, int linear, int *stepped, int *culprit)
 {
-    const int status = contact_steps(c, units, n_units, t, t_end, gauss_seidel, linear, stepped, culprit);
+    const int status = contact_steps(c, guard, units, n_units, t, t_end, gauss_seidel, linear, stepped, culprit);
     leave_entry(c, units, n_units);
     return status;
 }
@@ -469,10 +533,11 @@ static int contact_advance(ContactControl *c, CoreUnit *units, int n_units, doub
 /* Records grid[0], then steps to grid[1] (one macro step, or contact steps where `contacts` is given),
  * records, ... up to grid[n_points - 1]. Returns the status; *rows is the number of rows written,
  * *culprit the unit that failed (or -1). `stepped` is scratch space of n_units ints. With contacts, a
- * run also returns early (OK, fewer rows) once half the landed buffer is used, for the caller to read it. */
+ * run also returns early (OK, fewer rows) once half the landed buffer is used, for the caller to read it. With a
+ * guard, a macro step that creates too much energy stops the run (CORE_ERROR, *culprit -1, guard->failed). */
 int cosim_run(CoreUnit *units, int n_units, const double *grid, long n_points, int gauss_seidel, int linear,
-              double *table, long row_length, double *energy, int *stepped, ContactControl *contacts, long *rows,
-              int *culprit)
+              double *table, long row_length, double *energy, int *stepped, ContactControl *contacts,
+              EnergyGuard *guard, long *rows, int *culprit)
 {
     long p;
     int status;
@@ -485,9 +550,11 @@ int cosim_run(CoreUnit *units, int n_units, const double *grid, long n_points, i
         if (p + 1 == n_points) break;
         if (contacts) {
             if (2 * contacts->n_landed >= contacts->landed_capacity) break;
-            status = contact_advance(contacts, units, n_units, t, grid[p + 1], gauss_seidel, linear, stepped, culprit);
+            status = contact_advance(contacts, guard, units, n_units, t, grid[p + 1], gauss_seidel, linear, stepped,
+                                     culprit);
         } else {
             status = macro_step(units, n_units, t, grid[p + 1] - t, gauss_seidel, linear, stepped, culprit);
+            if (status == CORE_OK && !guard_check(guard, units, n_units, t, grid[p + 1] - t)) status = CORE_ERROR;
         }
         if (status != CORE_OK) return status;
     }
