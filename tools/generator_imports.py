@@ -20,6 +20,7 @@ import sys
 from pathlib import Path
 
 SOURCE_ROOT = Path(__file__).resolve().parent.parent
+MARK = "missing module: "  # how the child reports a name: what an imported module prints is no name
 
 
 class _StandIn:
@@ -106,7 +107,7 @@ def check(modules: list[str]) -> int:
 
     def found(name: str) -> None:
         names.append(name)
-        print(name, flush=True)
+        print(f"{MARK}{name}", flush=True)
 
     try:
         missing_modules(modules, found)
@@ -130,7 +131,7 @@ def main(argv: list[str]) -> int:
     if child.returncode == 2:
         sys.stdout.write(child.stdout)
         return 2
-    names = sorted(filter(None, child.stdout.split("\n")))
+    names = sorted(line[len(MARK):] for line in child.stdout.split("\n") if line.startswith(MARK))
     if names:
         print("\n".join(names))
         return 1

@@ -149,10 +149,15 @@ export class Unit {
   }
 }
 
+/** C's fmax and fmin (a NaN loses to a number), as harness/cosim/contact_guard.py has them. */
+const larger = (a, b) => (Number.isNaN(a) ? b : Number.isNaN(b) ? a : Math.max(a, b));
+const smaller = (a, b) => (Number.isNaN(a) ? b : Number.isNaN(b) ? a : Math.min(a, b));
+
 /** The energy check of harness/cosim/contact_guard.py, with its settings from the scene: after each macro step,
  * the scene's energy (each unit's energy output) risen above its lowest by more than `share` of the largest energy
  * in motion seen before (every E_kin and every contact's stored E_pot) stops the run, the contact named. Off where
- * no unit reports E_kin or no unit is a contact (outputs gap and gap_rate). */
+ * no unit reports E_kin or no unit is a contact (outputs gap and gap_rate). It reads the outputs the step just read
+ * (`yNext`), before the units take them: a step that fails it leaves the page at the step's start. */
 export class ContactGuard {
   constructor(units, settings) {
     this.settings = settings;
@@ -164,52 +169,53 @@ export class ContactGuard {
     this.before = this.watches.map(() => [0, 0, 0]);
   }
 
-  sums() {
+  sums(field) {
     let energy = 0, magnitude = 0, kinetic = 0;
     for (const unit of this.energies) {
-      energy += unit.y[unit.energyIndex];
-      magnitude += Math.abs(unit.y[unit.energyIndex]);
+      energy += unit[field][unit.energyIndex];
+      magnitude += Math.abs(unit[field][unit.energyIndex]);
     }
-    for (const [unit, k] of this.kinetic) kinetic += unit.y[k];
-    for (const [unit, , , k] of this.watches) if (k >= 0) kinetic += unit.y[k];
+    for (const [unit, k] of this.kinetic) kinetic += unit[field][k];
+    for (const [unit, , , k] of this.watches) if (k >= 0) kinetic += unit[field][k];
     return [energy, kinetic, magnitude];
   }
 
-  remember() {
+  remember(field) {
     this.watches.forEach(([unit, gap, rate, stored], w) => {
-      this.before[w] = [unit.y[gap], unit.y[rate], stored >= 0 ? unit.y[stored] : 0];
+      this.before[w] = [unit[field][gap], unit[field][rate], stored >= 0 ? unit[field][stored] : 0];
     });
   }
 
   begin() {
     if (!this.active) return;
-    [this.low, this.scale, this.magnitude] = this.sums();
-    this.remember();
+    [this.low, this.scale, this.magnitude] = this.sums("y");
+    this.remember("y");
   }
 
-  /** After the macro step [t, t + H]: null, or the message that stops the run. */
+  /** After the macro step [t, t + H], its outputs in each unit's yNext: null, or the message that stops the run. */
   check(t, H) {
     if (!this.active) return null;
-    const [energy, kinetic, magnitude] = this.sums();
-    this.magnitude = Math.max(this.magnitude, magnitude);
+    const [energy, kinetic, magnitude] = this.sums("yNext");
+    this.magnitude = larger(this.magnitude, magnitude);
     const created = energy - this.low;
     if (created > this.settings.share * this.scale + this.settings.floor * this.magnitude) {
       return this.message(t, H, created);
     }
-    this.low = Math.min(this.low, energy);
-    this.scale = Math.max(this.scale, kinetic);
-    this.remember();
+    this.low = smaller(this.low, energy);
+    this.scale = larger(this.scale, kinetic);
+    this.remember("yNext");
     return null;
   }
 
   message(t, H, created) {
-    const rises = this.watches.map(([unit, , , stored], w) => (stored >= 0 ? unit.y[stored] - this.before[w][2] : 0));
-    const rates = this.watches.map(([unit, , rate], w) => Math.abs(unit.y[rate] - this.before[w][1]));
-    const pick = (values) => values.indexOf(Math.max(...values));
-    const w = Math.max(...rises) > 0 ? pick(rises) : pick(rates);
+    const after = (unit, k) => unit.yNext[k];
+    const rises = this.watches.map(([unit, , , stored], w) => (stored >= 0 ? after(unit, stored) - this.before[w][2] : 0));
+    const rates = this.watches.map(([unit, , rate], w) => Math.abs(after(unit, rate) - this.before[w][1]));
+    const pick = (values) => values.reduce((best, value, k) => (value > values[best] ? k : best), 0);
+    const w = rises.some((rise) => rise > 0) ? pick(rises) : pick(rates);
     const [unit, gap, rate] = this.watches[w];
-    const depth = Math.max(-unit.y[gap], -this.before[w][0], 0);
-    const speed = Math.abs(this.before[w][1]) || Math.abs(unit.y[rate]);
+    const depth = Math.max(-after(unit, gap), -this.before[w][0], 0) || 0;
+    const speed = Math.abs(this.before[w][1]) || Math.abs(after(unit, rate));
     const k = unit.setting("k"), exponent = unit.setting("exponent");
     const { share, steps_per_contact: perContact, hertz_duration: hertz } = this.settings;
     let text = `${unit.name}: the macro step of ${H.toPrecision(3)} s from t = ${t} s took the contact ` +
@@ -343,10 +349,12 @@ export class Master {
         stepped[k] = true;
       }
     }
+    const stopped = this.guard.check(t, H);
+    if (stopped) return stopped;
     for (const unit of units) unit.accept(this.linear);
     this.steps += 1;
     this.time = end;
-    return this.guard.check(t, H);
+    return null;
   }
 
   /** Steps to `stop` on the harness's grid: 0, H, 2 H, ..., the last point moved to stop; as the

@@ -40,6 +40,16 @@ STEPS_PER_CONTACT = 20  # the fixed macro step a stop advises: this many over th
 HERTZ_DURATION = 2.94
 
 
+def larger(a: float, b: float) -> float:
+    """C's fmax: a NaN loses to a number."""
+    return b if math.isnan(a) else a if math.isnan(b) else max(a, b)
+
+
+def smaller(a: float, b: float) -> float:
+    """C's fmin."""
+    return b if math.isnan(a) else a if math.isnan(b) else min(a, b)
+
+
 @dataclass
 class GuardStop:
     """Where the check stopped a run: the step, the scene's energies, and the contacts before the step."""
@@ -93,15 +103,23 @@ class ContactGuard:
         if not self.active:
             return True
         energy, kinetic, magnitude = self.sums()
-        self.magnitude = max(self.magnitude, magnitude)
+        self.magnitude = larger(self.magnitude, magnitude)
         created = energy - self.low
         if created > SHARE * self.scale + FLOOR * self.magnitude:
             self.stop = GuardStop(t, step, created, self.scale, self.before.copy())
             return False
-        self.low = min(self.low, energy)
-        self.scale = max(self.scale, kinetic)
+        self.low = smaller(self.low, energy)
+        self.scale = larger(self.scale, kinetic)
         self._remember()
         return True
+
+    def mark(self) -> tuple:
+        """The check's numbers now, to go back to (contacts.Entry)."""
+        return self.low, self.scale, self.magnitude, self.before.copy()
+
+    def back(self, mark: tuple) -> None:
+        self.low, self.scale, self.magnitude = mark[:3]
+        self.before[:] = mark[3]  # in place: the C loop writes into this array
 
     def message(self, contact_steps: int | None) -> str:
         """The one line that names the contact, the time, and a step that would do."""

@@ -104,6 +104,7 @@ class Entry:
     snapshot: Snapshot
     t: float
     numbers: tuple  # contact_step, size, _wanted, last_rates, last_step, macro_steps, landed, energy's (h, last_error)
+    guard: tuple | None = None  # the energy check's numbers (ContactGuard.mark)
     redos: int = 0
 
 
@@ -251,7 +252,9 @@ class ContactSteps:
                 step = max(missed / 2, shortest)  # half way to the onset: the approach then lands on it as always
                 last, self._landing = False, False
             if self._entry is None and any(w.gap_now() < 0.0 for w in self.watches):
-                self._entry, start = Entry(start, t, numbers), None  # into a contact: kept while it is blind
+                # into a contact: kept while it is blind (the check has not seen this step yet)
+                self._entry = Entry(start, t, numbers, self.guard.mark() if self.guard is not None else None)
+                start = None
         finally:
             if start is not None:
                 start.release()
@@ -285,6 +288,8 @@ class ContactSteps:
         del self.landed[landed:]
         if energy is not None:
             self.energy.h, self.energy.last_error = energy
+        if entry.guard is not None:
+            self.guard.back(entry.guard)
         self.tally.retries += 1
         return entry.t
 

@@ -304,11 +304,12 @@ class Master:
                 outcome = self.interval.advance(t, grid[k + 1])
             else:
                 outcome = self.interval.step(t, grid[k + 1] - t)
-                tally.macro_steps += outcome.status == OK
             if outcome.status == OK and not isinstance(self.interval, ContactSteps) and \
                     not self.guard.check(t, grid[k + 1] - t):  # ContactSteps checks each of its steps itself
                 stopped_at, message = t, self.guard.message(options.contact_steps)
                 break
+            if not (options.tolerance or options.energy_tol or options.contact_steps):
+                tally.macro_steps += outcome.status == OK
             if outcome.status == ERROR:
                 stopped_at = t
                 message = getattr(self.interval, "failure", "") or \

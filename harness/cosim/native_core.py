@@ -104,7 +104,9 @@ class EnergyGuard(ctypes.Structure):
                 ("watch_stored", _int_p), ("share", ctypes.c_double), ("floor_share", ctypes.c_double),
                 ("low", ctypes.c_double), ("scale", ctypes.c_double), ("magnitude", ctypes.c_double),
                 ("before", _double_p), ("failed", ctypes.c_int), ("failed_at", ctypes.c_double),
-                ("failed_step", ctypes.c_double), ("created", ctypes.c_double), ("failed_scale", ctypes.c_double)]
+                ("failed_step", ctypes.c_double), ("created", ctypes.c_double), ("failed_scale", ctypes.c_double),
+                ("entry_low", ctypes.c_double), ("entry_scale", ctypes.c_double), ("entry_magnitude", ctypes.c_double),
+                ("entry_before", _double_p)]
 
 
 class NativeGuard:
@@ -122,6 +124,7 @@ class NativeGuard:
                         np.array([w.rate for w in watches], dtype=np.intc),
                         np.array([k for _, k in guard.stored], dtype=np.intc)]
         self.before = guard.before  # shared: C writes the contacts' values at each step's start into it
+        self.entry_before = np.zeros_like(guard.before)
         g = self.struct = EnergyGuard()
         g.n_kinetic, g.n_watches = len(guard.kinetic), len(watches)
         g.kinetic_unit, g.kinetic_index, g.watch_unit, g.watch_gap, g.watch_rate, g.watch_stored = (
@@ -129,6 +132,7 @@ class NativeGuard:
         g.share, g.floor_share = contact_guard.SHARE, contact_guard.FLOOR
         g.low, g.scale, g.magnitude = guard.low, guard.scale, guard.magnitude
         g.before = self.before.ctypes.data_as(_double_p)
+        g.entry_before = self.entry_before.ctypes.data_as(_double_p)
 
     def hand_back(self) -> None:
         """What the C loop left, into the guard."""

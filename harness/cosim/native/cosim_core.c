@@ -134,6 +134,7 @@ typedef struct {
     double *before;                /* 3 per contact: gap, rate, stored energy at the step's start */
     int failed;
     double failed_at, failed_step, created, failed_scale;
+    double entry_low, entry_scale, entry_magnitude, *entry_before; /* where the units entered a contact */
 } EnergyGuard;
 
 static void guard_remember(EnergyGuard *g, const CoreUnit *units)
@@ -367,11 +368,19 @@ static void leave_entry(ContactControl *c, CoreUnit *units, int n_units)
     c->have_entry = 0;
 }
 
-/* The states just saved (save_all) become the entry of a contact, with the control's numbers before the step */
-static void keep_entry(ContactControl *c, int n_units, int n_saved_values, double t, double contact_step, double size,
-                       double last_step, int have_rates, long macro_steps, long n_landed)
+/* The states just saved (save_all) become the entry of a contact, with the control's numbers before the step and the
+ * energy check's (which has not seen the step yet) */
+static void keep_entry(ContactControl *c, EnergyGuard *guard, int n_units, int n_saved_values, double t,
+                       double contact_step, double size, double last_step, int have_rates, long macro_steps,
+                       long n_landed)
 {
     int k, w;
+    if (guard) {
+        guard->entry_low = guard->low;
+        guard->entry_scale = guard->scale;
+        guard->entry_magnitude = guard->magnitude;
+        for (w = 0; w < 3 * guard->n_watches; w++) guard->entry_before[w] = guard->before[w];
+    }
     for (k = 0; k < n_units; k++) {
         c->entry_states[k] = c->states[k];
         c->states[k] = NULL;
@@ -408,9 +417,15 @@ static int swung(const ContactControl *c, const CoreUnit *units, double step)
 
 /* The units back where they entered the contact, the control's numbers too, and the contact step redo times
  * shorter than at the last entry */
-static int enter_again(ContactControl *c, CoreUnit *units, int n_units, int *culprit)
+static int enter_again(ContactControl *c, EnergyGuard *guard, CoreUnit *units, int n_units, int *culprit)
 {
     int k, i, w, offset = 0;
+    if (guard) {
+        guard->low = guard->entry_low;
+        guard->scale = guard->entry_scale;
+        guard->magnitude = guard->entry_magnitude;
+        for (w = 0; w < 3 * guard->n_watches; w++) guard->before[w] = guard->entry_before[w];
+    }
     for (k = 0; k < n_units; k++) {
         if (fmi_set_state(&units[k].calls, c->entry_states[k]) >= CORE_ERROR) {
             *culprit = k;
@@ -435,8 +450,8 @@ static int enter_again(ContactControl *c, CoreUnit *units, int n_units, int *cul
 
 /* A step that began apart, rolled back and redone half way to the onset where it overshot one; where it enters a
  * contact, its start is kept as the contact's entry */
-static int landed_step(ContactControl *c, CoreUnit *units, int n_units, double t, double *step, int *last,
-                       int *landing, int gauss_seidel, int linear, int *stepped, int *culprit)
+static int landed_step(ContactControl *c, EnergyGuard *guard, CoreUnit *units, int n_units, double t, double *step,
+                       int *last, int *landing, int gauss_seidel, int linear, int *stepped, int *culprit)
 {
     const double contact_step = c->contact_step, size = c->size, last_step = c->last_step;
     const int have_rates = c->have_rates;
@@ -460,7 +475,8 @@ static int landed_step(ContactControl *c, CoreUnit *units, int n_units, double t
         for (w = 0; w < c->n_watches; w++)
             if (units[c->watch_unit[w]].y_now[c->watch_gap[w]] + c->rounding < 0.0) {
                 for (k = 0; k < n_units; k++) values += 2 * units[k].n_out;
-                keep_entry(c, n_units, values, t, contact_step, size, last_step, have_rates, macro_steps, n_landed);
+                keep_entry(c, guard, n_units, values, t, contact_step, size, last_step, have_rates, macro_steps,
+                           n_landed);
                 return status;
             }
     release_states(c, units, n_units);
@@ -495,18 +511,19 @@ static int contact_steps(ContactControl *c, EnergyGuard *guard, CoreUnit *units,
                     c->failed_at = c->entry_t;
                     return CORE_ERROR;
                 }
-                if ((status = enter_again(c, units, n_units, culprit)) != CORE_OK) return status;
+                if ((status = enter_again(c, guard, units, n_units, culprit)) != CORE_OK) return status;
                 t = c->entry_t;
                 continue;
             }
         } else {
-            status = landed_step(c, units, n_units, t, &step, &last, &landing, gauss_seidel, linear, stepped, culprit);
+            status = landed_step(c, guard, units, n_units, t, &step, &last, &landing, gauss_seidel, linear, stepped,
+                                 culprit);
         }
         if (status != CORE_OK) return status;
         if (!guard_check(guard, units, n_units, t, step)) {
             if (!c->have_entry || c->entry_redos == c->max_landings) return CORE_ERROR;
             guard->failed = 0; /* a blind step into a contact: enter it again, as where it swung */
-            if ((status = enter_again(c, units, n_units, culprit)) != CORE_OK) return status;
+            if ((status = enter_again(c, guard, units, n_units, culprit)) != CORE_OK) return status;
             t = c->entry_t;
             continue;
         }
