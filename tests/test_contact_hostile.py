@@ -1,7 +1,6 @@
 """A hostile review of constraints, contacts and events: each test is a probe that failed when it was written,
-with what physics or the FMI standard expects and what the FMUs and the master did instead (in its text).
-Where the cause lies in fmus/framework/stepper.c or core.c, which this review left alone, the test still fails
-and its text says where the fix belongs (verified on a copy of those files); the others guard a fix.
+with what physics or the FMI standard expects and what the FMUs and the master did instead (in its text). Every
+probe's fix has landed since (in the master, fmus/framework/stepper.c and core.c): each test now guards its fix.
 
 The probes that passed (an impact exactly at a communication step's end and one ulp either side, the cradle
 struck from both ends at once, restitution 0 and 1, touching without force, the bouncing ball's Zeno end in
