@@ -15,13 +15,22 @@ the impact-aware master creates per contact onset (goal: below 1e-6 of the cradl
 impact-aware master at 100 steps per contact in the master's C loop and in its Python loop, alternately
 (the same macro steps, bit for bit): the time per macro step of each and their ratio.
 
+Then, by output interval (1e-5 to 1e-2 s), the cradle that stepped through its strike at an ordinary interval
+(harness.scene.contact_scenes.released_cradle: each ball's solver at its default, the strike at 0.355 s) with no
+option, that is with the default contact steps, in the C loop and the Python loop side by side: macro steps,
+rollbacks and the balls' velocity error from 2 ms after the strike on (relative to the impact speed) against the
+monolithic reference; and the same scene in plain macro steps of each interval, which the energy check stops.
+
 Usage: python benchmarks/contact_benchmark.py [--quick] [--repeats 3]
 """
 from __future__ import annotations
 
 import argparse
+import json
 import math
+import shutil
 import sys
+import tempfile
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -32,7 +41,9 @@ import time  # noqa: E402
 from harness.cosim.master import Master, MasterOptions  # noqa: E402
 from harness.cosim.system import load_system  # noqa: E402
 from harness.fmi.fmus import build_fmus  # noqa: E402
+from harness.scene.contact_scenes import released_cradle  # noqa: E402
 from harness.studies.contact_study import TARGET, contact_sweep, steps_needed  # noqa: E402
+from harness.studies.monolithic import MonolithicScene  # noqa: E402
 
 STOP = 0.3
 
@@ -68,7 +79,41 @@ def main(argv: list[str] | None = None) -> int:
     (c_steps, c_seconds), (py_steps, py_seconds) = loops["C"], loops["Python"]
     print(f"--contact-steps 100, {c_steps} macro steps: C loop {1e6 * c_seconds / c_steps:.1f} us per macro step, "
           f"Python loop {1e6 * py_seconds / py_steps:.1f} us: {py_seconds / c_seconds:.1f} times")
+    by_interval((1e-4, 1e-3, 1e-2) if args.quick else (1e-5, 1e-4, 1e-3, 1e-2))
     return 0
+
+
+def by_interval(intervals: tuple[float, ...]) -> None:
+    """The released cradle at each output interval: default contact steps in both loops, then plain steps."""
+    print(f"\nthe released cradle to 0.5 s by output interval, default options ({'macro steps':>11s}, rollbacks, "
+          "velocity error after the strike of the impact speed; seconds C | Python):")
+    folder = Path(tempfile.mkdtemp())
+    try:
+        for interval in intervals:
+            path = folder / f"cradle_{interval:g}.json"
+            path.write_text(json.dumps(released_cradle(interval)))
+            with load_system(path) as system:
+                runs = {}
+                for name, native, options in (("C", True, {}), ("Python", False, {}),
+                                              ("plain", True, {"contact_steps": 0})):
+                    with Master(system, MasterOptions(stop=system.stop, step=interval, **options)) as master:
+                        master.use_native = native
+                        start = time.perf_counter()
+                        runs[name] = (master.run(), time.perf_counter() - start)
+                scene = MonolithicScene(system)
+                columns = scene.solve(runs["C"][0].time)
+            (c, c_seconds), (py, py_seconds), (plain, _) = runs["C"], runs["Python"], runs["plain"]
+            after = c.time >= scene.events[0][0] + 2e-3
+            speed = max(abs(float(v)) for k in range(1, 6) for v in columns[f"ball{k}.v_x"])
+            error = max(float(abs(c[f"ball{k}.v_x"][after] - columns[f"ball{k}.v_x"][after]).max())
+                        for k in range(1, 6)) / speed
+            same = "the same bits" if (c.values == py.values).all() else "NOT the same bits"
+            print(f"  {interval:7g} s {c.macro_steps:11d} {c.retries:3d} {error:9.2e}   {c_seconds:6.3f} | "
+                  f"{py_seconds:6.3f} s ({same}); plain steps: "
+                  + (f"stopped at t = {plain.stopped_at:.6g} s" if plain.stopped_at is not None else
+                     f"ran through, energy residual {plain.energy_residual:.2e} J"))
+    finally:
+        shutil.rmtree(folder)
 
 
 def compare_loops(system, repeats: int) -> dict[str, tuple[int, float]]:

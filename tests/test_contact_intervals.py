@@ -18,7 +18,7 @@ from harness.cli import main
 from harness.cosim.contacts import ContactSteps
 from harness.cosim.master import DEFAULT_CONTACT_STEPS, Master, MasterOptions
 from harness.cosim.system import load_system
-from harness.scene.contact_scenes import ball_row, pendulum_cradle
+from harness.scene.contact_scenes import ball_row, released_cradle
 from harness.studies.monolithic import MonolithicScene
 
 INTERVALS = (1e-5, 1e-4, 1e-3, 1e-2)
@@ -34,16 +34,7 @@ def written(tmp_path: Path, data: dict, name: str = "scene.json", fmi3: bool = F
     return path
 
 
-def cradle(interval: float, stop: float = 0.5) -> dict:
-    """Newton's cradle of five steel balls (R = 0.02 m, m = 0.26 kg, L = 0.5 m, k = 1.5e10 N/m^1.5), ball 1 let go
-    from -0.3 rad, each ball's solver and step left at the FMU's defaults: the strike at 0.355 s, at 0.66 m/s."""
-    data = pendulum_cradle(5, length=0.5, mass=0.26, angle=-0.3, stop=stop, step=interval)
-    for component in data["components"].values():
-        if component["fmu"] == "Contact":
-            component["start"]["k"] = 1.5e10
-        else:
-            del component["start"]["solver"], component["start"]["h"]
-    return data
+cradle = released_cradle
 
 
 def run(path: Path, native: bool = True, **options):

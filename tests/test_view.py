@@ -548,11 +548,8 @@ def test_the_page_stops_a_step_deep_into_a_contact_by_name(tmp_path):
     needs_browser()
     import re
 
-    from harness.scene.contact_scenes import pendulum_cradle
-    data = pendulum_cradle(5, length=0.5, mass=0.26, angle=-0.3, stop=0.5, step=1e-3)
-    for component in data["components"].values():
-        if component["fmu"] == "Contact":
-            component["start"]["k"] = 1.5e10
+    from harness.scene.contact_scenes import released_cradle
+    data = released_cradle(1e-3)
     scene = tmp_path / "cradle.json"
     scene.write_text(json.dumps(data))
     assert main(["view", str(scene), "--out", str(tmp_path / "view")]) == 0

@@ -61,9 +61,9 @@ class MasterOptions:
     tolerance: float | None = None    # adapt the macro step by step doubling to this error per step
     energy_tol: float | None = None   # adapt the macro step to keep the energy the power bonds create [J] below this
     energy_correction: bool = False   # hand the energy a bond created back through the next step's force
-    # land macro steps on contacts' onsets, this many steps per contact; 0: plain macro steps; None: DEFAULT_CONTACT_STEPS
-    # on a scene with Contact elements unless another control chooses the steps (--tolerance, --energy-tolerance,
-    # --on-discard retry)
+    # land macro steps on contacts' onsets, this many steps per contact; 0: plain macro steps; None:
+    # DEFAULT_CONTACT_STEPS on a scene with Contact elements unless another control chooses the steps (--tolerance,
+    # --energy-tolerance, --on-discard retry)
     contact_steps: int | None = None
     progress: bool = False
 
@@ -139,6 +139,7 @@ class Master:
                 for component in system.components:
                     with held():  # each instance made is in `units`, for free() to free
                         self.units.append(Unit(component, system, self.fmus, arena, answer))
+                self.watches = contact_watches(self.units)  # the Contact elements' gaps, if any
                 self.options = dataclasses.replace(options, extrapolation=self._extrapolation(options),
                                                    contact_steps=self._contact_steps(options))
                 self.exchange = Exchange(self.units, self.options.extrapolation == "linear")
@@ -146,7 +147,7 @@ class Master:
                     if unit.line is not None:
                         unit.line.active = int(self.exchange.linear)
                 self._check_states(options)
-                self.guard = ContactGuard(self.units, contact_watches(self.units))
+                self.guard = ContactGuard(self.units, self.watches)
         except BaseException:
             self.free()
             raise
@@ -173,7 +174,7 @@ class Master:
             self.bonds = PowerBonds(self.system, self.exchange)
             stepper = BondedStep(stepper, self.bonds, o.energy_correction)
             if o.energy_tol:
-                landing = bool(o.contact_steps or contact_watches(self.units))  # land on contacts, sized by energy
+                landing = bool(o.contact_steps or self.watches)  # land on contacts, sized by energy
                 energy = EnergyController(o.energy_tol, o.stop - o.start, order_of(self.exchange), o.step,
                                           o.step * (ENERGY_SMALLEST if landing else 2.0 ** -10))
                 if landing:
@@ -194,7 +195,7 @@ class Master:
         if options.contact_steps is not None:
             return options.contact_steps
         chosen = options.tolerance is not None or options.energy_tol is not None or options.on_discard == "retry"
-        landing = contact_watches(self.units) and all(u.can_save for u in self.units)
+        landing = self.watches and all(u.can_save for u in self.units)
         return DEFAULT_CONTACT_STEPS if landing and not chosen else 0
 
     def _extrapolation(self, options: MasterOptions) -> str:
@@ -295,20 +296,18 @@ class Master:
             if not has_energy:
                 energy[:rows] = math.nan  # as the Python loop records it
             grid = grid[:0]  # done: skip the Python loop
+        advances = bool(options.tolerance or options.energy_tol or options.contact_steps)  # many steps an interval
+        checks_itself = isinstance(self.interval, ContactSteps)  # the energy check after each of its steps
         for k, t in enumerate(grid):
             record(t)
             rows += 1
             if k + 1 == len(grid):
                 break
-            if options.tolerance or options.energy_tol or options.contact_steps:
-                outcome = self.interval.advance(t, grid[k + 1])
-            else:
-                outcome = self.interval.step(t, grid[k + 1] - t)
-            if outcome.status == OK and not isinstance(self.interval, ContactSteps) and \
-                    not self.guard.check(t, grid[k + 1] - t):  # ContactSteps checks each of its steps itself
+            outcome = self.interval.advance(t, grid[k + 1]) if advances else self.interval.step(t, grid[k + 1] - t)
+            if outcome.status == OK and not checks_itself and not self.guard.check(t, grid[k + 1] - t):
                 stopped_at, message = t, self.guard.message(options.contact_steps)
                 break
-            if not (options.tolerance or options.energy_tol or options.contact_steps):
+            if not advances:
                 tally.macro_steps += outcome.status == OK
             if outcome.status == ERROR:
                 stopped_at = t
