@@ -96,7 +96,8 @@ def main() -> int:
     parser.add_argument("--error-seconds", type=float, default=2.0, help="simulated time of the error run")
     parser.add_argument("--component-steps", type=int, default=COMPONENT_STEPS,
                         help="per timed run at least: macro steps times instances")
-    parser.add_argument("--repeats", type=int, default=REPEATS, help="timed runs of each length, in processes of their own")
+    parser.add_argument("--repeats", type=int, default=REPEATS,
+                        help="timed runs of each length, in processes of their own")
     parser.add_argument("--time-run", nargs=2, metavar=("SCENE", "STEPS"), help=argparse.SUPPRESS)
     args = parser.parse_args()
     if args.time_run:

@@ -65,7 +65,8 @@ def imports(repeats: int) -> None:
 def build_check(repeats: int) -> None:
     build_fmus()  # up to date first: both then check a build that has nothing to do
     cmake, folder = configured_cmake(build_dir()), str(build_dir())
-    configure = [cmake, "-S", str(ROOT), "-B", folder, "-DCMAKE_BUILD_TYPE=Release", f"-DOBJECTS_PYTHON={sys.executable}"]
+    configure = [cmake, "-S", str(ROOT), "-B", folder, "-DCMAKE_BUILD_TYPE=Release",
+                 f"-DOBJECTS_PYTHON={sys.executable}"]
     build = [cmake, "--build", folder, "-j2"]
 
     def run(*commands):

@@ -13,8 +13,9 @@ formulation of L = T - U (heyoka.lagrangian) and the linear solve a = M^-1 f wri
 faster of the two is heyoka's entry. For each target, heyoka runs at the loosest tolerance (four per
 decade, from 1e-6 down) that meets it, compact mode off; the time of its construction (LLVM compilation)
 is printed beside and not counted. The FMU's `taylor` runs at its fastest setting that meets the target
-among every order from 6 with a fixed step and with the step chosen for tol (eight per decade), and `gbs` at its fastest among
-tolerances and fixed columns; both in one fmi2DoStep over 10 s. Times are medians of interleaved repeats.
+among every order from 6 with a fixed step and with the step chosen for tol (eight per decade), and
+`gbs` at its fastest among tolerances and fixed columns; both in one fmi2DoStep over 10 s. Times are
+medians of interleaved repeats.
 
     python benchmarks/heyoka_benchmark.py [--objects DoublePendulum,Chain5] [--targets 1e-9,1e-11]
 

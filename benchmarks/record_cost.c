@@ -38,8 +38,8 @@ typedef void (*FreeInstance)(fmi2Component);
 
 /* FMI 3.0's calls for the reported mode, in plain C types */
 typedef void (*IntermediateUpdate3)(void *, double, bool, bool, bool, bool, bool *, double *);
-typedef void *(*Instantiate3)(const char *, const char *, const char *, bool, bool, bool, bool, const unsigned *, size_t,
-                              void *, void (*)(void *, int, const char *, const char *), IntermediateUpdate3);
+typedef void *(*Instantiate3)(const char *, const char *, const char *, bool, bool, bool, bool, const unsigned *,
+                              size_t, void *, void (*)(void *, int, const char *, const char *), IntermediateUpdate3);
 typedef int (*SetInt64)(void *, const unsigned *, size_t, const long long *, size_t);
 typedef int (*EnterInitialization3)(void *, bool, double, double, bool, double);
 typedef int (*Call3)(void *);
@@ -82,8 +82,8 @@ static FmiCalls initialized(const Setting *s)
 {
     static const fmi2CallbackFunctions callbacks = {logger, calloc, free, NULL, NULL};
     FmiCalls calls;
-    fmi2Component c =
-        ((Instantiate)found(s->library, "fmi2Instantiate"))("record_cost", fmi2CoSimulation, s->guid, "", &callbacks, 0, 0);
+    fmi2Component c = ((Instantiate)found(s->library, "fmi2Instantiate"))("record_cost", fmi2CoSimulation, s->guid, "",
+                                                                          &callbacks, 0, 0);
     if (!c || ((SetInteger)found(s->library, "fmi2SetInteger"))(c, &s->solver_vr, 1, &s->solver) ||
         ((SetReal2)found(s->library, "fmi2SetReal"))(c, &s->h_vr, 1, &s->h) ||
         ((Call)found(s->library, "fmi2EnterInitializationMode"))(c) ||
@@ -109,7 +109,7 @@ static double run_steps(const Setting *s, long n)
     FmiCalls calls = initialized(s);
     double start, seconds;
     start = now();
-    if (fmi_do_step(&calls, 0.0, (double)n * s->h) != FMI_OK) {
+    if (fmi_do_step(&calls, 0.0, (double)n * s->h) != STATUS_OK) {
         fprintf(stderr, "record_cost: fmi2DoStep failed\n");
         exit(2);
     }
@@ -138,7 +138,7 @@ static void report_row(void *environment, double t, bool set_requested, bool get
         r->failed = 1;
         return;
     }
-    r->failed |= fmi_get_floats(&r->calls, r->outputs, r->n_outputs, r->rows + r->row++ * r->n_outputs) != FMI_OK;
+    r->failed |= fmi_get_floats(&r->calls, r->outputs, r->n_outputs, r->rows + r->row++ * r->n_outputs) != STATUS_OK;
 }
 
 static void logger3(void *environment, int status, const char *category, const char *message)
@@ -174,7 +174,7 @@ static double run_reported(const Setting *s, long n)
     r.calls.do_step = found(s->library3, "fmi3DoStep");
     r.calls.last_time = &last;
     start = now();
-    if (fmi_do_step(&r.calls, 0.0, (double)n * s->h) != FMI_OK || r.failed || r.row != n) {
+    if (fmi_do_step(&r.calls, 0.0, (double)n * s->h) != STATUS_OK || r.failed || r.row != n) {
         fprintf(stderr, "record_cost: fmi3DoStep reported %ld of %ld steps\n", r.row, n);
         exit(2);
     }
@@ -203,9 +203,9 @@ static double run_record(const Setting *s, long n)
     unit.real_vrs = s->outputs;
     unit.reals = (char *)rows;
     unit.real_stride = (long)(s->n_outputs * sizeof *rows);
-    if (record_rows(&unit, grid, 0, 1, &done, &where) != FMI_OK) exit(2); /* the start's row */
+    if (record_rows(&unit, grid, 0, 1, &done, &where) != STATUS_OK) exit(2); /* the start's row */
     start = now();
-    if (record_rows(&unit, grid, 1, n + 1, &done, &where) != FMI_OK) {
+    if (record_rows(&unit, grid, 1, n + 1, &done, &where) != STATUS_OK) {
         fprintf(stderr, "record_cost: the recorder stopped at point %ld\n", done);
         exit(2);
     }
@@ -223,7 +223,8 @@ int main(int argc, char **argv)
     char *cursor;
     long n;
     if (argc != 10 && argc != 11) {
-        fprintf(stderr, "usage: record_cost LIBRARY GUID SOLVER_VR SOLVER H_VR H OUTPUTS {steps|record|reported|both} N "
+        fprintf(stderr,
+                "usage: record_cost LIBRARY GUID SOLVER_VR SOLVER H_VR H OUTPUTS {steps|record|reported|both} N "
                 "[LIBRARY3]\n");
         return 2;
     }
@@ -266,11 +267,12 @@ int main(int argc, char **argv)
             reported[r] = s.library3 ? run_reported(&s, n) : 0.0;
             reported_ratio[r] = reported[r] / steps[r];
         }
-        printf("{\"ns_per_step\": %.2f, \"ns_per_point\": %.2f, \"point_to_step\": %.3f", 1e9 * median(steps, ROUNDS) / (double)n,
-               1e9 * median(points, ROUNDS) / (double)n, median(ratio, ROUNDS));
+        printf("{\"ns_per_step\": %.2f, \"ns_per_point\": %.2f, \"point_to_step\": %.3f",
+               1e9 * median(steps, ROUNDS) / (double)n, 1e9 * median(points, ROUNDS) / (double)n,
+               median(ratio, ROUNDS));
         if (s.library3)
-            printf(", \"ns_per_reported\": %.2f, \"reported_to_step\": %.3f", 1e9 * median(reported, ROUNDS) / (double)n,
-                   median(reported_ratio, ROUNDS));
+            printf(", \"ns_per_reported\": %.2f, \"reported_to_step\": %.3f",
+                   1e9 * median(reported, ROUNDS) / (double)n, median(reported_ratio, ROUNDS));
         printf("}\n");
     } else {
         fprintf(stderr, "record_cost: unknown mode %s: expected steps, record, both or (with LIBRARY3) reported\n",

@@ -124,24 +124,23 @@ static double run_fmu(const Api *api, long steps, double *result)
 /* The textbook RK4 loop, written out once per right-hand side (a macro rather than a function
  * pointer, so that each right-hand side is inlined as it would be in a program of its own). The
  * stage times matter for a driven (rheonomic) model: t_n = n h, t_n + h/2, t_n + h. */
-#define TEXTBOOK_RK4(RHS, steps, x)                                                    \
-    do {                                                                               \
+#define TEXTBOOK_RK4(RHS, steps, x) \
+    do { \
         double y_[N_STATES], k1_[N_STATES], k2_[N_STATES], k3_[N_STATES], k4_[N_STATES]; \
-        const double h_ = STEP;                                                        \
-        long n_;                                                                       \
-        int i_;                                                                        \
-        for (n_ = 0; n_ < (steps); n_++) {                                             \
-            const double t_ = (double)n_ * h_;                                         \
-            RHS(t_, x, k1_);                                                           \
-            for (i_ = 0; i_ < N_STATES; i_++) y_[i_] = x[i_] + 0.5 * h_ * k1_[i_];     \
-            RHS(t_ + 0.5 * h_, y_, k2_);                                               \
-            for (i_ = 0; i_ < N_STATES; i_++) y_[i_] = x[i_] + 0.5 * h_ * k2_[i_];     \
-            RHS(t_ + 0.5 * h_, y_, k3_);                                               \
-            for (i_ = 0; i_ < N_STATES; i_++) y_[i_] = x[i_] + h_ * k3_[i_];           \
-            RHS(t_ + h_, y_, k4_);                                                     \
-            for (i_ = 0; i_ < N_STATES; i_++)                                          \
-                x[i_] += h_ / 6.0 * (k1_[i_] + 2.0 * k2_[i_] + 2.0 * k3_[i_] + k4_[i_]); \
-        }                                                                              \
+        const double h_ = STEP; \
+        long n_; \
+        int i_; \
+        for (n_ = 0; n_ < (steps); n_++) { \
+            const double t_ = (double)n_ * h_; \
+            RHS(t_, x, k1_); \
+            for (i_ = 0; i_ < N_STATES; i_++) y_[i_] = x[i_] + 0.5 * h_ * k1_[i_]; \
+            RHS(t_ + 0.5 * h_, y_, k2_); \
+            for (i_ = 0; i_ < N_STATES; i_++) y_[i_] = x[i_] + 0.5 * h_ * k2_[i_]; \
+            RHS(t_ + 0.5 * h_, y_, k3_); \
+            for (i_ = 0; i_ < N_STATES; i_++) y_[i_] = x[i_] + h_ * k3_[i_]; \
+            RHS(t_ + h_, y_, k4_); \
+            for (i_ = 0; i_ < N_STATES; i_++) x[i_] += h_ / 6.0 * (k1_[i_] + 2.0 * k2_[i_] + 2.0 * k3_[i_] + k4_[i_]); \
+        } \
     } while (0)
 
 static double run_generated(long steps, double *result)
@@ -299,7 +298,8 @@ int main(int argc, char **argv)
     if (strcmp(mode, "check") == 0) {
         const double worst = check_against_generated(steps);
         printf("%s: hand-written against generated derivatives at %ld random states: largest relative difference "
-               "%.3g\n", MODEL_IDENTIFIER_STRING, steps, worst);
+               "%.3g\n",
+               MODEL_IDENTIFIER_STRING, steps, worst);
         return worst <= CHECK_LIMIT ? 0 : 1;
     }
 #endif

@@ -76,7 +76,8 @@ def cheapest(fmu: FmuInstance, method: str) -> Setting | None:
         for order in range(6, TAYLOR_ORDERS[1] + 1, 2):
             candidates += [{"solver": "taylor", "taylor_order": order, "tol": 0.0, "h": STOP / n}
                            for n in np.unique(np.geomspace(1, 4000, 60).astype(int))]
-            candidates += [{"solver": "taylor", "taylor_order": order, "tol": tol} for tol in np.geomspace(1e-6, 1e-16, 41)]
+            candidates += [{"solver": "taylor", "taylor_order": order, "tol": tol}
+                           for tol in np.geomspace(1e-6, 1e-16, 41)]
     elif method in ADAPTIVE:
         candidates = [{"solver": method, "tol": tol} for tol in np.geomspace(1e-6, 1e-14, 33)]
         if method == "gbs":  # and its fixed step at every column

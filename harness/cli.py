@@ -7,6 +7,7 @@ import sys
 import threading
 from pathlib import Path
 
+from harness.cosim.algorithm_registry import DEFAULT as DEFAULT_ALGORITHM, NAMES as ALGORITHM_NAMES
 from harness.errors import HarnessError
 from harness.fmi.methods import SOLVERS
 
@@ -166,7 +167,8 @@ def command_run(args: argparse.Namespace) -> int:
         scene = None
         if reference is not None:  # refused before the run when the scene has no derived reference
             from harness.studies.monolithic import MonolithicScene
-            reference = output_file(reference, "--reference", component_files(args.system, system), outputs={"--out": out})
+            reference = output_file(reference, "--reference", component_files(args.system, system),
+                                    outputs={"--out": out})
             scene = MonolithicScene(system)
         options = MasterOptions(stop=stop, step=step, algorithm=args.algorithm, extrapolation=args.extrapolation,
                                 on_discard=args.on_discard, progress=not args.quiet, iterate_tol=args.iterate,
@@ -425,10 +427,10 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("system", help="an .ssp archive, an .ssd file, a folder with SystemStructure.ssd, or a scene .json")
     p.add_argument("--stop", type=positive_number, help="stop time [s] (default: the system's)")
     p.add_argument("--step", type=positive_number, help="communication step [s] (default: the system's)")
-    p.add_argument("--algorithm", choices=["jacobi", "gauss-seidel"], default="gauss-seidel")
+    p.add_argument("--algorithm", choices=ALGORITHM_NAMES, default=DEFAULT_ALGORITHM)
     p.add_argument("--extrapolation", choices=["hold", "linear"],
-                   help="inputs over a macro step (default: linear, or hold where a component receives inputs it cannot "
-                        "take on a line: an FMI 3.0 FMU whose inputs are not set in intermediate updates)")
+                   help="inputs over a macro step (default: linear, or hold where a component receives inputs it "
+                        "cannot take on a line: an FMI 3.0 FMU whose inputs are not set in intermediate updates)")
     p.add_argument("--on-discard", choices=["stop", "retry"], default="stop",
                    help="after fmi2Discard: stop, or roll back and retry with halved steps")
     p.add_argument("--iterate", type=positive_number, metavar="TOL",
@@ -477,9 +479,10 @@ def build_parser() -> argparse.ArgumentParser:
                    "(default: work-precision and long-run the three thesis pendulums, stability every object with a "
                    "linear model)")
     p.add_argument("--quick", action="store_true", help="work-precision and stability: every other step, "
-                   "tolerance and damping ratio; long-run: 1,000 periods instead of 10,000 (a chart in seconds); contacts: "
-                   "no fixed step below 2e-6 s and at most 200 steps per contact")
-    p.add_argument("--repeats", type=count(1000), default=3, help="timed repeats per point; the median is kept (default 3)")
+                   "tolerance and damping ratio; long-run: 1,000 periods instead of 10,000 (a chart in seconds); "
+                   "contacts: no fixed step below 2e-6 s and at most 200 steps per contact")
+    p.add_argument("--repeats", type=count(1000), default=3,
+                   help="timed repeats per point; the median is kept (default 3)")
     p.add_argument("--methods", nargs="+", metavar="NAME", help="work-precision: only these methods and peers "
                    "(the FMUs' methods, scipy-RK45, scipy-DOP853, scipy-LSODA, fmpy-CVode; default: all)")
     p.add_argument("--scene", "--system", dest="system",
@@ -519,9 +522,11 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--step", type=positive_number, help="communication step [s] (default: the scene's)")
     p.set_defaults(run=command_view)
 
-    p = sub.add_parser("demo", help="the main job: thesis scene, coupled scene, plan, validation, charts -> DIR/index.html")
+    p = sub.add_parser("demo",
+                       help="the main job: thesis scene, coupled scene, plan, validation, charts -> DIR/index.html")
     p.add_argument("--out", default="out", help="output folder (default out/)")
-    p.add_argument("--duration", type=positive_number, help="simulated and planned time of the thesis scene [s] (default: the scene's, 20)")
+    p.add_argument("--duration", type=positive_number,
+                   help="simulated and planned time of the thesis scene [s] (default: the scene's, 20)")
     p.set_defaults(run=command_demo)
     return parser
 

@@ -3,8 +3,8 @@ the target and renamed over it when writing ends.
 
 The rename happens however writing ends (finished, stopped by a discard, failed, interrupted), so
 that rows computed so far are kept; a failure of the writing itself (a full disk), or one before
-any row was written, removes the temporary file and leaves the target as it was. Two runs writing the same file never interleave
-their rows: each renames its own complete file, and the last one wins.
+any row was written, removes the temporary file and leaves the target as it was. Two runs writing
+the same file never interleave their rows: each renames its own complete file, and the last one wins.
 """
 from __future__ import annotations
 

@@ -193,8 +193,9 @@ class CompatibilityPlugin:
             return
         if not self.record.rows:
             return
-        # The documents hold a whole run only: every test file, nothing deselected, every row's test reported.
-        every_file = set(Path(self.documents.parent.parent, "tests").glob("test_*.py")) <= self.files_run
+        # The documents hold a whole run only: every test file (in the layers' folders), nothing deselected, every
+        # row's test reported.
+        every_file = set(Path(self.documents.parent.parent, "tests").glob("*/test_*.py")) <= self.files_run
         complete = every_file and not self.deselected and self.record.expected <= self.record.reported
         target = self.documents if complete else self.fallback
         folder = target.parent / target.stem

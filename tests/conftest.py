@@ -4,17 +4,27 @@ import fcntl
 import os
 import pickle
 import shutil
-import subprocess
 import sys
 import tempfile
 from pathlib import Path
 
 import pytest
 from fmpy import extract
+from hypothesis import HealthCheck, settings
 
 from harness.fmi.fmu_instance import FmuInstance
 from harness.fmi.fmus import FMU_NAMES, PROJECT_ROOT, build_dir, build_fmus
 from compatibility_record import CompatibilityPlugin, Row
+
+# The tests, one folder per layer of the project (its objects, the FMUs' C framework, their FMI interface,
+# co-simulation, the studies, the views, and the documentation with the command line). pytest puts this folder on
+# sys.path (the shared helpers: method_checks, pair_reference, compatibility_record, conftest) and each test
+# file's own folder as it imports the file; the layers' folders go there now, so that a test module imports
+# what another one defines by its name whichever folder either sits in and whichever file runs alone
+# (framework/test_free_motion_methods.py takes the cradle's period from objects/test_contact_objects.py).
+TESTS = Path(__file__).resolve().parent
+LAYER_FOLDERS = ("objects", "framework", "fmi", "cosim", "studies", "view", "docs")
+sys.path[1:1] = [str(TESTS / layer) for layer in LAYER_FOLDERS if str(TESTS / layer) not in sys.path]
 
 PENDULUMS = ("SimplePendulum", "DoublePendulum", "SpringPendulum")
 # The coupling elements (hand-written, no states) alone, with ends that move: at their default inputs nothing
@@ -28,14 +38,20 @@ ELEMENTS = tuple(ELEMENT_MOTION)
 # short files to even out the workers' ends; last, one of them would keep a worker busy while the others idle
 # (the live view's and the WebAssembly files, last by name, did).
 LONGEST_FILES = ("test_docs_measurements.py", "test_memory_safety.py", "test_docs.py", "test_demo.py",
-                 "test_work_precision_objects.py", "test_fmu_package.py", "test_hostile.py", "test_view.py",
+                 "test_work_precision_objects.py", "test_fmu_package.py", "test_cli_bad_input.py", "test_view.py",
                  "test_work_precision.py", "test_registry.py", "test_charts.py", "test_checkers.py",
                  "test_platforms.py", "test_stability.py", "test_wasm.py", "test_chaos_plan.py", "test_peers.py",
-                 "test_objects.py", "test_physics.py", "test_broken_input.py", "test_conformance.py",
+                 "test_objects.py", "test_physics.py", "test_fmu_bad_input.py", "test_conformance.py",
                  "test_planner.py", "test_cli.py")
 
 
+# the quick subset for daily work leaves these out: `-m "not slow"` (docs/explanation/testing.md)
+SLOW_FILES = LONGEST_FILES[:10]
+
+
 def pytest_configure(config) -> None:
+    config.addinivalue_line("markers", "slow: a test of one of the longest files (SLOW_FILES), which the quick subset "
+                                       "leaves out")
     config.addinivalue_line("markers", "compatibility(importer, version, interface, platform, criterion): the test "
                                        "measures a row of docs/compatibility.md (tests/compatibility_record.py)")
     config.pluginmanager.register(CompatibilityPlugin(PROJECT_ROOT / "docs" / "compatibility.md",
@@ -45,6 +61,9 @@ def pytest_configure(config) -> None:
 def pytest_collection_modifyitems(session, config, items) -> None:
     rank = {name: k for k, name in enumerate(LONGEST_FILES)}
     items.sort(key=lambda item: rank.get(item.path.name, len(rank)))  # stable: the others keep their order
+    for item in items:
+        if item.path.name in SLOW_FILES:
+            item.add_marker(pytest.mark.slow)
 
 
 def shared_folder(tmp_path_factory, name: str) -> Path:
@@ -171,3 +190,11 @@ def rebuilt_with_fmpy(unzipped_folder: str, tmp_path: Path) -> Path:
     (tmp_path / "build").mkdir()
     build_platform_binary(str(copy), str(tmp_path / "build"))
     return copy
+
+
+def hostile(examples: int) -> settings:
+    """hypothesis's settings for the hostile inputs (tests/docs/test_cli_bad_input.py, tests/framework/
+    test_fmu_bad_input.py): reproducible runs (derandomized), no deadline: the FMUs' work bound, not a clock,
+    bounds a call."""
+    return settings(max_examples=examples, deadline=None, suppress_health_check=list(HealthCheck), derandomize=True,
+                    database=None)

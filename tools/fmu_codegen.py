@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import argparse
 import html
+import importlib.util
 import math
 import re
 import sys
@@ -122,7 +123,8 @@ def check(md: ModelDescription) -> None:
     integers = [v for v in md.variables if v.type_tag in INTEGER_TYPES]
     others = [v for v in md.variables if v.type_tag not in ("Real",) + INTEGER_TYPES]
     if others:
-        raise ModelDescriptionError(f"{where}: only Real, Integer and Enumeration variables are supported ({others[0].name})")
+        raise ModelDescriptionError(f"{where}: only Real, Integer and Enumeration variables are supported "
+                                    f"({others[0].name})")
     if [v.value_reference for v in reals] != list(range(len(reals))):
         raise ModelDescriptionError(f"{where}: Real value references must be 0..{len(reals) - 1} in document order")
     base = len(reals)
@@ -135,7 +137,8 @@ def check(md: ModelDescription) -> None:
         if state.value_reference != k:
             raise ModelDescriptionError(f"{where}: state {state.name} must be Real number {k} (states come first)")
         if der.name != f"der({state.name})":
-            raise ModelDescriptionError(f"{where}: {der.name} is the derivative of {state.name}; name it der({state.name})")
+            raise ModelDescriptionError(f"{where}: {der.name} is the derivative of {state.name}; "
+                                        f"name it der({state.name})")
         if der.value_reference != len(md.states) + k:
             raise ModelDescriptionError(f"{where}: {der.name} must directly follow the states, in the same order")
     for v in md.variables:
@@ -182,6 +185,48 @@ def _variable_row(v: Variable, md: ModelDescription) -> str:
             f'{_c_double(high, math.inf)}}},')
 
 
+def _methods_table():
+    """harness/fmi/methods.py, loaded by its path: the table of methods, without the harness's dependencies."""
+    path = Path(__file__).resolve().parents[1] / "harness" / "fmi" / "methods.py"
+    spec = importlib.util.spec_from_file_location("methods_table", path)
+    module = importlib.util.module_from_spec(spec)
+    sys.modules[spec.name] = module  # dataclasses look their module up while the class is made
+    spec.loader.exec_module(module)
+    return module
+
+
+def method_dispatch(md: ModelDescription) -> list[str]:
+    """The framework's dispatch over the methods, from the methods table: per engine with coefficients the list
+    X(SOLVER_<NAME>, <its coefficients>) that the switches in integrators.c expand, the declarations of those
+    coefficients, and the adaptive test."""
+    table = _methods_table()
+    items = [name for name, _, _ in md.enumerations["Solver"]]
+    if items != list(table.SOLVERS):
+        raise ModelDescriptionError(f"{md.path}: the Solver enumeration {items} is not the methods table's "
+                                    f"{list(table.SOLVERS)} (harness/fmi/methods.py)")
+    lines = ["",
+             "/* The methods' dispatch, from the methods table (harness/fmi/methods.py): per engine with coefficients,",
+             " * X(SOLVER_<NAME>, <the C name of its coefficients in integrators.c>) for each of its methods. */"]
+    for engine, spec in table.ENGINES.items():
+        if spec.table is None:
+            continue
+        entries = " ".join(f"X(SOLVER_{m.name.upper()}, {m.c_table})" for m in table.METHODS if m.engine == engine)
+        lines.append(f"#define {engine.upper()}_METHODS(X) {entries}")
+    always = [m.name for m in table.METHODS if table.ENGINES[m.engine].step_control == "tol"]
+    with_tol = [m.name for m in table.METHODS if table.ENGINES[m.engine].step_control == "tol or h"]
+    test = " || ".join([*(f"(solver) == SOLVER_{name.upper()}" for name in always),
+                        "((" + " || ".join(f"(solver) == SOLVER_{name.upper()}" for name in with_tol)
+                        + ") && (tol) > 0.0)"])
+    needs_tol = " || ".join(f"(solver) == SOLVER_{name.upper()}" for name in always)
+    lines += ["/* Whether the method picks its own steps (at most h long) to meet tol. */",
+              f"#define ADAPTIVE_METHOD(solver, tol) ({test})",
+              "/* Whether the method needs tol > 0 (its steps only from tol), and those that take fixed steps at "
+              "tol = 0. */",
+              f"#define NEEDS_TOL(solver) ({needs_tol or '0'})",
+              f'#define FIXED_STEP_AT_ZERO_TOL "{" and ".join(with_tol)}"']
+    return lines
+
+
 def header(md: ModelDescription, xml_name: str) -> str:
     reals = [v for v in md.variables if v.type_tag == "Real"]
     integers = [v for v in md.variables if v.type_tag in INTEGER_TYPES]
@@ -215,6 +260,8 @@ def header(md: ModelDescription, xml_name: str) -> str:
     for type_name, items in md.enumerations.items():
         lines += [f"#define {type_name.upper()}_{name.upper()} {value}" for name, value, _ in items]
         lines.append(f"#define {type_name.upper()}_COUNT {len(items)}")
+    if "Solver" in md.enumerations:
+        lines += method_dispatch(md)
     lines += ["", "#ifdef MODEL_DESCRIPTION_TABLES",
               "static const VariableInfo REAL_VARIABLES[N_REAL] = {"]
     lines += [_variable_row(v, md) for v in reals]
@@ -224,7 +271,8 @@ def header(md: ModelDescription, xml_name: str) -> str:
         lines += [_variable_row(v, md) for v in integers]
         lines.append("};")
     if inputs:
-        lines.append("static const unsigned INPUT_VRS[N_INPUTS] = {" + ", ".join(f"VR_{v.c_name}" for v in inputs) + "};")
+        lines.append("static const unsigned INPUT_VRS[N_INPUTS] = {"
+                     + ", ".join(f"VR_{v.c_name}" for v in inputs) + "};")
     if "Solver" in md.enumerations:
         names = ", ".join(f'"{name}"' for name, _, _ in md.enumerations["Solver"])
         lines.append(f"static const char *const SOLVER_NAMES[SOLVER_COUNT] = {{{names}}};")
@@ -240,7 +288,8 @@ def documentation(md: ModelDescription, equations_html: str) -> str:
             v.unit, v.start if v.start is not None else "", v.min or "", v.max or "", v.description)) + "</tr>")
     enum_blocks = []
     for type_name, items in md.enumerations.items():
-        items_html = "".join(f"<li><code>{value}</code> {html.escape(name)}: {html.escape(desc)}</li>" for name, value, desc in items)
+        items_html = "".join(f"<li><code>{value}</code> {html.escape(name)}: {html.escape(desc)}</li>"
+                             for name, value, desc in items)
         enum_blocks.append(f"<h3>{html.escape(type_name)}</h3><ul>{items_html}</ul>")
     return f"""<!DOCTYPE html>
 <html lang="en"><head><meta charset="utf-8"><title>{md.identifier}</title>

@@ -46,8 +46,8 @@ typedef int (*Fmi2SetInteger)(Component, const unsigned int *, size_t, const int
 typedef int (*Fmi2DoStep)(Component, double, double, int);
 typedef void (*FreeInstance)(Component);
 typedef void (*Fmi3Logger)(void *, int, const char *, const char *);
-typedef Component (*Fmi3Instantiate)(const char *, const char *, const char *, int, int, int, int,
-                                     const unsigned int *, size_t, void *, Fmi3Logger, void *);
+typedef Component (*Fmi3Instantiate)(const char *, const char *, const char *, int, int, int, int, const unsigned int *,
+                                     size_t, void *, Fmi3Logger, void *);
 typedef int (*Fmi3EnterInitialization)(Component, int, double, double, int, double);
 typedef int (*Fmi3SetFloat64)(Component, const unsigned int *, size_t, const double *, size_t);
 typedef int (*Fmi3SetInt64)(Component, const unsigned int *, size_t, const int64_t *, size_t);
@@ -121,8 +121,8 @@ static int run(int argc, char **argv)
         if (!c) return 1;
         status |= ((Fmi2Setup)found(library, "fmi2SetupExperiment"))(c, 0, 0.0, 0.0, 0, 0.0);
     } else {
-        c = ((Fmi3Instantiate)found(library, "fmi3InstantiateCoSimulation"))("driver", argv[3], "", 0, 0, 0, 0, NULL,
-                                                                             0, NULL, logger3, NULL);
+        c = ((Fmi3Instantiate)found(library, "fmi3InstantiateCoSimulation"))("driver", argv[3], "", 0, 0, 0, 0, NULL, 0,
+                                                                             NULL, logger3, NULL);
         if (!c) return 1;
     }
     for (i = 7; i < argc; i++) { /* start values, before initialization */
@@ -162,9 +162,9 @@ static int run(int argc, char **argv)
             }
             t = t_next;
         }
-        status |= version == 2 ? ((Fmi2GetReal)found(library, "fmi2GetReal"))(c, outputs, n_outputs, values)
-                               : ((Fmi3GetFloat64)found(library, "fmi3GetFloat64"))(c, outputs, n_outputs, values,
-                                                                                   n_outputs);
+        status |= version == 2
+                      ? ((Fmi2GetReal)found(library, "fmi2GetReal"))(c, outputs, n_outputs, values)
+                      : ((Fmi3GetFloat64)found(library, "fmi3GetFloat64"))(c, outputs, n_outputs, values, n_outputs);
         print_bits(t);
         for (j = 0; j < n_outputs; j++) {
             putchar(' ');

@@ -43,7 +43,8 @@ int main(void)
     printf("{\n");
     for (solver = 1; solver <= SOLVER_COUNT; solver++) {
         const ButcherTableau *t = tableau_of(solver);
-        if (t) print_tableau(t, solver == SOLVER_COUNT);
+        if (t)
+            print_tableau(t, solver == SOLVER_COUNT);
         else if (solver == SOLVER_GBS)
             printf("  \"%s\": {\"extrapolation\": true, \"columns\": %d}%s\n", solver_name(solver), GBS_MAX_COLUMNS,
                    solver == SOLVER_COUNT ? "" : ",");
@@ -52,7 +53,8 @@ int main(void)
         else if (solver == SOLVER_STORMER_VERLET)
             printf("  \"%s\": {\"partitioned\": true, \"order\": 2}%s\n", solver_name(solver),
                    solver == SOLVER_COUNT ? "" : ",");
-        else print_adams_bashforth(adams_bashforth_of(solver), solver == SOLVER_COUNT);
+        else
+            print_adams_bashforth(adams_bashforth_of(solver), solver == SOLVER_COUNT);
     }
     printf("}\n");
     return 0;

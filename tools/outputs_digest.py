@@ -80,7 +80,8 @@ def run_case(path: Path, case: Case) -> str:
     instance, keep = open_instance(path, case, reported)
     try:
         names = [v.name for v in instance.model_description.modelVariables
-                 if v.type in ("Real", "Float64", "Integer", "Int32", "Int64") and v.causality in ("output", "local", "parameter")
+                 if v.type in ("Real", "Float64", "Integer", "Int32", "Int64")
+                 and v.causality in ("output", "local", "parameter")
                  and v.variability != "constant"]
         settings = {k: v for k, v in case.settings.items() if k in instance.variables}
         try:

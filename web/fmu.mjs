@@ -4,7 +4,10 @@
 // module needs only three WASI functions (fd_write, fd_seek, fd_close: its C library's stdio, which
 // the FMUs never use), so where no WASI is at hand a stub answering "bad file" serves.
 
-const STATUS = ["OK", "Warning", "Discard", "Error", "Fatal", "Pending"];
+// The return codes of FMI calls, named once for the page's script (the harness's C and Python name them once each:
+// tests/framework/test_status_codes.py checks that they agree).
+export const STATUS_NAMES = ["OK", "Warning", "Discard", "Error", "Fatal", "Pending"];
+export const OK = 0, WARNING = 1, DISCARD = 2, ERROR = 3;
 const CO_SIMULATION = 1;
 
 /** WASI imports for a module that writes no file: every call answers EBADF (8). */
@@ -33,7 +36,7 @@ export class FmuModule {
   }
 
   log(status, instance, category, message) {
-    this.messages.push(`[${STATUS[status] ?? status}] ${this.string(instance)}: ${this.string(message)}`);
+    this.messages.push(`[${STATUS_NAMES[status] ?? status}] ${this.string(instance)}: ${this.string(message)}`);
   }
 
   string(pointer) {

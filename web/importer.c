@@ -12,8 +12,8 @@
 __attribute__((import_module("env"), import_name("fmi_log"))) void fmi_log(int status, const char *instance,
                                                                            const char *category, const char *message);
 
-static void logger(fmi2ComponentEnvironment environment, fmi2String instance, fmi2Status status,
-                   fmi2String category, fmi2String message, ...)
+static void logger(fmi2ComponentEnvironment environment, fmi2String instance, fmi2Status status, fmi2String category,
+                   fmi2String message, ...)
 {
     char text[2048];
     va_list arguments;
@@ -27,7 +27,4 @@ static void logger(fmi2ComponentEnvironment environment, fmi2String instance, fm
 static const fmi2CallbackFunctions callbacks = {logger, calloc, free, NULL, NULL};
 
 /* The callbacks to pass to fmi2Instantiate. */
-__attribute__((visibility("default"))) const fmi2CallbackFunctions *importer_callbacks(void)
-{
-    return &callbacks;
-}
+__attribute__((visibility("default"))) const fmi2CallbackFunctions *importer_callbacks(void) { return &callbacks; }

@@ -5,12 +5,10 @@
 // derivative; in Gauss-Seidel one that has stepped hands over y(t) with the slope
 // (y(t + H) - y(t)) / H. At t = 0 connected outputs are copied to inputs inside initialization
 // mode until they settle.
-import { FmuModule } from "./fmu.mjs";
+import { DISCARD, FmuModule, STATUS_NAMES } from "./fmu.mjs";
 
 export const ALGORITHMS = ["jacobi", "gauss-seidel"];
 export const EXTRAPOLATIONS = ["hold", "linear"];
-const OK = 0, DISCARD = 2;
-const STATUS_NAMES = ["OK", "Warning", "Discard", "Error", "Fatal", "Pending"];
 
 /** A table keyed by names from the scene (components, variables): without a prototype, so that a
  * name such as "__proto__" or "constructor" is a key like any other. */

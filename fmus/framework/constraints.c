@@ -121,7 +121,7 @@ static int compliant_stiffness(const ModelConst *c, double t, const double *x, d
         depth = geo.g[i] < 0.0 ? -geo.g[i] : 0.0; /* F = k depth^p (1 - damping g'), depth = -g */
         if (peak >= 0.0 && geo.rate[i] < 0.0)
             depth = pow(pow(depth, law->exponent + 1.0) + (law->exponent + 1.0) * geo.rate[i] * geo.rate[i] /
-                                                               (2.0 * law->stiffness * s[n].inverse_mass),
+                                                              (2.0 * law->stiffness * s[n].inverse_mass),
                         1.0 / (law->exponent + 1.0));
         s[n].index = i;
         s[n].dF_dg = -law->stiffness * law->exponent * pow(depth, law->exponent - 1.0) *
@@ -265,9 +265,12 @@ static void indicators_from(const ModelConst *c, int32_t active, const double *g
 {
     int i;
     for (i = 0; i < NC; i++) {
-        if (c->law[i].bilateral) z[i] = 1.0;
-        else if (!c->law[i].compliant && (active >> i & 1)) z[i] = lambda ? lambda[i] : 0.0;
-        else z[i] = g[i];
+        if (c->law[i].bilateral)
+            z[i] = 1.0;
+        else if (!c->law[i].compliant && (active >> i & 1))
+            z[i] = lambda ? lambda[i] : 0.0;
+        else
+            z[i] = g[i];
     }
 }
 
@@ -418,9 +421,11 @@ int free_motion_refused(int solver, int32_t active, const char *when, double t, 
     if (!FREE_MOTION_ONLY(solver) || !(active & RIGID_UNILATERAL_BITS)) return 0;
     for (i = 0; !(active >> i & 1); i++) continue;
     if (isfinite(t)) snprintf(at, sizeof at, " t = %.17g", t);
-    snprintf(message, size, "constraint %s acts %s%s (resting or taut), and %s integrates free motion only (the free "
-             "equations' %s, without the constraint's force): take another method for this object", CONSTRAINT_NAMES[i],
-             when, at, solver_name(solver), solver == SOLVER_TAYLOR ? "Taylor series" : "split a(q) - d v");
+    snprintf(message, size,
+             "constraint %s acts %s%s (resting or taut), and %s integrates free motion only (the free "
+             "equations' %s, without the constraint's force): take another method for this object",
+             CONSTRAINT_NAMES[i], when, at, solver_name(solver),
+             solver == SOLVER_TAYLOR ? "Taylor series" : "split a(q) - d v");
     return 1;
 }
 
@@ -479,8 +484,10 @@ int start_constraints(const ModelConst *c, int32_t *active, double t, double *x,
         if (c->law[i].compliant) continue;
         if (!isfinite(geo.g[i]) || geo.g[i] < -tolerance ||
             (c->law[i].bilateral && (fabs(geo.g[i]) > tolerance || fabs(geo.rate[i]) > tolerance))) {
-            snprintf(message, size, "the start values violate constraint %s (gap = %g, its rate = %g; allowed: gap "
-                     ">= %g%s)", CONSTRAINT_NAMES[i], geo.g[i], geo.rate[i], -tolerance,
+            snprintf(message, size,
+                     "the start values violate constraint %s (gap = %g, its rate = %g; allowed: gap "
+                     ">= %g%s)",
+                     CONSTRAINT_NAMES[i], geo.g[i], geo.rate[i], -tolerance,
                      c->law[i].bilateral ? ", and both within 1e-12 for a bilateral constraint" : "");
             return 0;
         }
@@ -513,8 +520,8 @@ int constraint_outputs(const ModelConst *c, double t, const double *u, double *r
         real[CONSTRAINT_FORCE_VRS[i]] = c->law[i].bilateral || lambda[i] > 0.0 ? lambda[i] : 0.0;
         real[CONSTRAINT_INDICATOR_VRS[i]] = z[i];
         if (c->law[i].compliant && geo.g[i] < 0.0) { /* the energy the overlap stores */
-            const double stored = c->law[i].stiffness * pow(-geo.g[i], c->law[i].exponent + 1.0) /
-                                  (c->law[i].exponent + 1.0);
+            const double stored =
+                c->law[i].stiffness * pow(-geo.g[i], c->law[i].exponent + 1.0) / (c->law[i].exponent + 1.0);
             real[VR_E_pot] += stored;
             real[VR_E] += stored;
         }

@@ -4,8 +4,8 @@
 #define CONSTRAINTS_H
 
 typedef struct {
-    int bilateral;      /* g = 0 always: pushes and pulls */
-    int compliant;      /* a force law instead of impulses */
+    int bilateral; /* g = 0 always: pushes and pulls */
+    int compliant; /* a force law instead of impulses */
     double restitution; /* rigid unilateral: the gap's rate after an impact is -restitution times the rate before */
     double stiffness, exponent, damping; /* compliant: F = k delta^exponent (1 + damping d(delta)/dt), delta = -g */
 } ConstraintLaw;

@@ -12,8 +12,14 @@
 /* ---------------------------------------------------------------- states and messages */
 
 /* FMI 2.0's names; a layer of another version sets its own (Instance.state_names). */
-static const char *const FMI2_STATE_NAMES[] = {"instantiated", "initializationMode", "stepComplete", "stepFailed",
-                                               "eventMode", "continuousTimeMode", "terminated", "error",
+static const char *const FMI2_STATE_NAMES[] = {"instantiated",
+                                               "initializationMode",
+                                               "stepComplete",
+                                               "stepFailed",
+                                               "eventMode",
+                                               "continuousTimeMode",
+                                               "terminated",
+                                               "error",
                                                "intermediateUpdateMode"};
 
 const char *core_state_name(const Instance *inst, int state)
@@ -69,8 +75,10 @@ Status core_set_logging(Instance *inst, const char *function, int on, size_t n, 
         for (k = 0; k < sizeof known / sizeof known[0]; k++)
             if (categories[i] && strcmp(categories[i], known[k]) == 0) found = 1;
         if (!found) {
-            log_error(inst, "%s: unknown log category %s (known: logStatusError, logStatusWarning, "
-                      "logStatusDiscard, logAll)", function, categories[i] ? categories[i] : "NULL");
+            log_error(inst,
+                      "%s: unknown log category %s (known: logStatusError, logStatusWarning, "
+                      "logStatusDiscard, logAll)",
+                      function, categories[i] ? categories[i] : "NULL");
             return STATUS_ERROR;
         }
     }
@@ -179,9 +187,9 @@ int core_input_index(unsigned int vr) { return input_index(vr); }
 
 /* ---------------------------------------------------------------- life cycle */
 
-Instance *core_instantiate(const char *function, Interface type, const char *name, const char *token,
-                           MessageSink emit, void (*api_logger)(void), void *environment,
-                           void *(*allocate)(size_t, size_t), void (*release)(void *), int logging_on)
+Instance *core_instantiate(const char *function, Interface type, const char *name, const char *token, MessageSink emit,
+                           void (*api_logger)(void), void *environment, void *(*allocate)(size_t, size_t),
+                           void (*release)(void *), int logging_on)
 {
     Instance *inst;
     Instance reporter; /* logs before an instance exists */
@@ -200,8 +208,8 @@ Instance *core_instantiate(const char *function, Interface type, const char *nam
         return NULL;
     }
     if (!token || strcmp(token, MODEL_GUID) != 0) {
-        log_error(&reporter, "%s: fmuGUID = %s does not match this FMU (%s, GUID %s)", function,
-                  token ? token : "NULL", MODEL_IDENTIFIER_STRING, MODEL_GUID);
+        log_error(&reporter, "%s: fmuGUID = %s does not match this FMU (%s, GUID %s)", function, token ? token : "NULL",
+                  MODEL_IDENTIFIER_STRING, MODEL_GUID);
         return NULL;
     }
     inst = (Instance *)allocate(1, sizeof(Instance));
@@ -295,12 +303,14 @@ Status core_exit_initialization(Instance *inst, const char *function)
 #if N_STATES > 0
     if (!states_usable(inst, function, "the start values of the states")) return STATUS_ERROR;
 #else
-    {   /* without states, the outputs decide: the same promise as the models with states */
+    { /* without states, the outputs decide: the same promise as the models with states */
         double real[N_REAL];
         memcpy(real, inst->s.real, sizeof real);
         if (!model_outputs(&inst->constants, inst->s.time, NULL, real) || first_non_finite(real, N_REAL) >= 0) {
-            log_error(inst, "%s: the start values of the inputs give a singular configuration "
-                      "or non-finite outputs", function);
+            log_error(inst,
+                      "%s: the start values of the inputs give a singular configuration "
+                      "or non-finite outputs",
+                      function);
             return STATUS_ERROR;
         }
     }
@@ -312,8 +322,8 @@ Status core_exit_initialization(Instance *inst, const char *function)
         if (!start_constraints(&inst->constants, &inst->s.active_constraints, inst->s.time, inst->s.real,
                                acting_inputs(inst, u), message, sizeof message) ||
             (inst->type == INTERFACE_CO_SIMULATION &&
-             free_motion_refused(inst->s.integer[INT_solver], inst->s.active_constraints, "at the start", NAN,
-                                 message, sizeof message))) {
+             free_motion_refused(inst->s.integer[INT_solver], inst->s.active_constraints, "at the start", NAN, message,
+                                 sizeof message))) {
             log_error(inst, "%s: %s", function, message);
             return STATUS_ERROR;
         }
@@ -332,9 +342,8 @@ Status core_exit_initialization(Instance *inst, const char *function)
 static unsigned settable_in(const VariableInfo *v)
 {
     if (v->causality == CAUSALITY_PARAMETER) {
-        return v->variability == VARIABILITY_TUNABLE
-                   ? MS_INSTANTIATED | MS_INITIALIZATION | MS_STEP_COMPLETE | MS_EVENT
-                   : MS_INSTANTIATED | MS_INITIALIZATION;
+        return v->variability == VARIABILITY_TUNABLE ? MS_INSTANTIATED | MS_INITIALIZATION | MS_STEP_COMPLETE | MS_EVENT
+                                                     : MS_INSTANTIATED | MS_INITIALIZATION;
     }
     if (v->causality == CAUSALITY_INPUT)
         return MS_INSTANTIATED | MS_INITIALIZATION | MS_STEP_COMPLETE | MS_EVENT | MS_CONTINUOUS;
@@ -354,8 +363,8 @@ static const char *kind_of(const VariableInfo *v)
 
 /* A finite value within the variable's range; logs and returns 0 otherwise. exact: an Integer's value as set
  * (a 64-bit one is not exact as a double, and the message names it exactly), NULL for a Real. */
-static int value_in_range(Instance *inst, const char *function, const VariableInfo *v, unsigned int vr,
-                          double value, const int64_t *exact)
+static int value_in_range(Instance *inst, const char *function, const VariableInfo *v, unsigned int vr, double value,
+                          const int64_t *exact)
 {
     if (!isfinite(value)) {
         log_error(inst, "%s: variable %s (value reference %u) = %g is not a finite number (allowed range [%g, %g])",
@@ -373,18 +382,20 @@ static int value_in_range(Instance *inst, const char *function, const VariableIn
     }
 #if N_STATES > 0 && !SPLIT_ACCELERATIONS
     if (v == &INTEGER_VARIABLES[INT_solver] && value == SOLVER_STORMER_VERLET) {
-        log_error(inst, "%s: variable solver (value reference %u) = %d (stormer_verlet) needs accelerations of the "
+        log_error(inst,
+                  "%s: variable solver (value reference %u) = %d (stormer_verlet) needs accelerations of the "
                   "form a(t, q) - d v, and %s (allowed here: 1 to %d except %d; implicit_midpoint and gauss_legendre4 "
-                  "are symmetric as well)", function, vr, SOLVER_STORMER_VERLET, SPLIT_REASON, SOLVER_COUNT,
-                  SOLVER_STORMER_VERLET);
+                  "are symmetric as well)",
+                  function, vr, SOLVER_STORMER_VERLET, SPLIT_REASON, SOLVER_COUNT, SOLVER_STORMER_VERLET);
         return 0;
     }
 #endif
 #if N_STATES > 0 && !TAYLOR_AVAILABLE
     if (v == &INTEGER_VARIABLES[INT_solver] && value == SOLVER_TAYLOR) {
-        log_error(inst, "%s: variable solver (value reference %u) = %d (taylor) needs Taylor recurrences for every "
-                  "function of the equations, and %s (allowed here: 1 to %d except %d)", function, vr, SOLVER_TAYLOR,
-                  TAYLOR_REASON, SOLVER_COUNT, SOLVER_TAYLOR);
+        log_error(inst,
+                  "%s: variable solver (value reference %u) = %d (taylor) needs Taylor recurrences for every "
+                  "function of the equations, and %s (allowed here: 1 to %d except %d)",
+                  function, vr, SOLVER_TAYLOR, TAYLOR_REASON, SOLVER_COUNT, SOLVER_TAYLOR);
         return 0;
     }
 #endif
@@ -392,8 +403,8 @@ static int value_in_range(Instance *inst, const char *function, const VariableIn
 }
 
 /* Every check a value must pass before it is stored; logs and returns 0 on the first failure. */
-static int value_acceptable(Instance *inst, const char *function, const VariableInfo *v, unsigned int vr,
-                            double value, const int64_t *exact)
+static int value_acceptable(Instance *inst, const char *function, const VariableInfo *v, unsigned int vr, double value,
+                            const int64_t *exact)
 {
     /* an input also while the FMU asks for it (the layer checks which are asked for) */
     const unsigned allowed =
@@ -531,15 +542,22 @@ Status core_get_integer(Instance *inst, const char *function, const unsigned int
         const IntegratorMemory *m = &inst->s.integrator;
         uint64_t counter = 0;
         int is_counter = 1;
-        if (k == INT_n_rhs) counter = m->n_rhs;
-        else if (k == INT_n_steps) counter = m->n_steps;
-        else if (k == INT_n_rejected) counter = m->n_rejected;
-        else if (k == INT_n_jacobians) counter = m->n_jacobians;
-        else if (k == INT_n_iterations) counter = m->n_iterations;
+        if (k == INT_n_rhs)
+            counter = m->n_rhs;
+        else if (k == INT_n_steps)
+            counter = m->n_steps;
+        else if (k == INT_n_rejected)
+            counter = m->n_rejected;
+        else if (k == INT_n_jacobians)
+            counter = m->n_jacobians;
+        else if (k == INT_n_iterations)
+            counter = m->n_iterations;
 #ifdef INT_n_events
-        else if (k == INT_n_events) counter = m->n_events;
+        else if (k == INT_n_events)
+            counter = m->n_events;
 #endif
-        else is_counter = 0;
+        else
+            is_counter = 0;
         if (is_counter) number = counter > (uint64_t)most ? most : (int64_t)counter; /* saturates */
 #else
         (void)most;
@@ -607,8 +625,8 @@ static int state_is_ours(Instance *inst, const char *function, const StoredState
         return 0;
     }
     if (strncmp(stored->guid, MODEL_GUID, GUID_SLOT) != 0) {
-        log_error(inst, "%s: the FMU state belongs to another FMU (GUID %.48s, this FMU is %s)", function,
-                  stored->guid, MODEL_GUID);
+        log_error(inst, "%s: the FMU state belongs to another FMU (GUID %.48s, this FMU is %s)", function, stored->guid,
+                  MODEL_GUID);
         return 0;
     }
     return 1;
@@ -684,8 +702,10 @@ static int integrator_memory_refused(Instance *inst, const char *function, const
     else if (m->gbs_rejected != 0 && m->gbs_rejected != 1)
         field = "gbs rejection flag", value = m->gbs_rejected, allowed = "0 or 1";
     if (!field) return 0;
-    log_error(inst, "%s: the FMU state's integrator memory is invalid: its %s is %g (allowed: %s, AB_MAX_STEPS = %d, "
-              "GBS_MAX_COLUMNS - 1 = %d)", function, field, value, allowed, AB_MAX_STEPS, gbs_top);
+    log_error(inst,
+              "%s: the FMU state's integrator memory is invalid: its %s is %g (allowed: %s, AB_MAX_STEPS = %d, "
+              "GBS_MAX_COLUMNS - 1 = %d)",
+              function, field, value, allowed, AB_MAX_STEPS, gbs_top);
     return 1;
 }
 
@@ -707,14 +727,14 @@ static int restored_state_valid(Instance *inst, const char *function, const SimS
         return 0;
     }
     for (i = 0; i < N_REAL; i++)
-        if (settable_in(&REAL_VARIABLES[i]) && !value_in_range(inst, function, &REAL_VARIABLES[i], (unsigned int)i,
-                                                               s->real[i], NULL))
+        if (settable_in(&REAL_VARIABLES[i]) &&
+            !value_in_range(inst, function, &REAL_VARIABLES[i], (unsigned int)i, s->real[i], NULL))
             return 0;
 #if N_INTEGER > 0
     for (i = 0; i < N_INTEGER; i++)
         if (INTEGER_VARIABLES[i].causality == CAUSALITY_PARAMETER &&
-            !value_in_range(inst, function, &INTEGER_VARIABLES[i], (unsigned int)(INTEGER_VR_BASE + i),
-                            s->integer[i], &(int64_t){s->integer[i]}))
+            !value_in_range(inst, function, &INTEGER_VARIABLES[i], (unsigned int)(INTEGER_VR_BASE + i), s->integer[i],
+                            &(int64_t){s->integer[i]}))
             return 0;
 #endif
     if (s->slopes_set != 0 && s->slopes_set != 1) {
@@ -739,7 +759,7 @@ static int restored_state_valid(Instance *inst, const char *function, const SimS
         return 0;
     }
 #if N_STATES > 0
-    {   /* its states checked as initialization checks start values (omega = 1e200 makes E_kin overflow) */
+    { /* its states checked as initialization checks start values (omega = 1e200 makes E_kin overflow) */
         const SimState kept = inst->s;
         const ModelConst kept_constants = inst->constants;
         const int kept_valid = inst->constants_valid, kept_outputs = inst->outputs_valid;
@@ -763,9 +783,10 @@ static int restored_state_valid(Instance *inst, const char *function, const SimS
     for (i = 0; i < N_CONSTRAINTS; i++)
         if ((s->active_constraints >> i & 1) && constants.law[i].bilateral) break;
     if (i < N_CONSTRAINTS || (s->active_constraints >> N_CONSTRAINTS) != 0) {
-        log_error(inst, "%s: the FMU state's active constraints 0x%x name a constraint that cannot be active (allowed: "
-                  "a bit for each of the %d unilateral constraints, rigid or compliant)", function, (unsigned)s->active_constraints,
-                  N_CONSTRAINTS);
+        log_error(inst,
+                  "%s: the FMU state's active constraints 0x%x name a constraint that cannot be active (allowed: "
+                  "a bit for each of the %d unilateral constraints, rigid or compliant)",
+                  function, (unsigned)s->active_constraints, N_CONSTRAINTS);
         return 0;
     }
 #else
@@ -856,8 +877,8 @@ Status core_serialize(Instance *inst, const char *function, const void *FMUstate
     }
     if (!state_is_ours(inst, function, stored)) return STATUS_ERROR;
     if (size != SERIAL_SIZE) {
-        log_error(inst, "%s: size = %lu, but the serialized state takes %lu bytes", function,
-                  (unsigned long)size, (unsigned long)SERIAL_SIZE);
+        log_error(inst, "%s: size = %lu, but the serialized state takes %lu bytes", function, (unsigned long)size,
+                  (unsigned long)SERIAL_SIZE);
         return STATUS_ERROR;
     }
     memcpy(out, &stored->magic, 4);
@@ -881,8 +902,8 @@ Status core_deserialize(Instance *inst, const char *function, const unsigned cha
         return STATUS_ERROR;
     }
     if (size != SERIAL_SIZE) {
-        log_error(inst, "%s: size = %lu, but a serialized state of %s takes %lu bytes", function,
-                  (unsigned long)size, MODEL_IDENTIFIER_STRING, (unsigned long)SERIAL_SIZE);
+        log_error(inst, "%s: size = %lu, but a serialized state of %s takes %lu bytes", function, (unsigned long)size,
+                  MODEL_IDENTIFIER_STRING, (unsigned long)SERIAL_SIZE);
         return STATUS_ERROR;
     }
     memcpy(&sum, in + SERIAL_SIZE - 8, 8);
@@ -934,8 +955,7 @@ Status core_set_continuous_states(Instance *inst, const char *function, const do
     if (!state_count_matches(inst, function, nx, N_STATES, x)) return STATUS_ERROR;
     for (i = 0; i < nx; i++)
         if (!isfinite(x[i])) {
-            log_error(inst, "%s: state %s = %g is not a finite number", function, REAL_VARIABLES[i].name,
-                      x[i]);
+            log_error(inst, "%s: state %s = %g is not a finite number", function, REAL_VARIABLES[i].name, x[i]);
             return STATUS_ERROR;
         }
     for (i = 0; i < nx; i++) inst->s.real[i] = x[i];
@@ -1001,9 +1021,11 @@ Status core_new_discrete_states(Instance *inst, const char *function, int *state
             memcpy(inst->s.real, before, sizeof before);
             inst->s.active_constraints = active;
             inst->s.integrator.n_events = events;
-            log_error(inst, "%s: the event at t = %.17g cannot be resolved: the constraints are dependent (an impact "
+            log_error(inst,
+                      "%s: the event at t = %.17g cannot be resolved: the constraints are dependent (an impact "
                       "or a contact force has no unique solution) or the state after it is singular; the state is "
-                      "left as it was", function, inst->s.time);
+                      "left as it was",
+                      function, inst->s.time);
             return STATUS_ERROR;
         }
         *states_changed = memcmp(before, inst->s.real, sizeof before) != 0 || active != inst->s.active_constraints;
@@ -1026,8 +1048,7 @@ Status core_get_continuous_states(Instance *inst, const char *function, double x
 Status core_get_nominals(Instance *inst, const char *function, double x_nominal[], size_t nx)
 {
     size_t i;
-    if (!state_count_matches(inst, function, nx, N_STATES, x_nominal))
-        return STATUS_ERROR;
+    if (!state_count_matches(inst, function, nx, N_STATES, x_nominal)) return STATUS_ERROR;
     for (i = 0; i < nx; i++) x_nominal[i] = 1.0;
     return STATUS_OK;
 }
@@ -1043,8 +1064,10 @@ static int derivative_call_valid(Instance *inst, const char *function, size_t nv
         return 0;
     for (i = 0; i < nvr; i++)
         if (order[i] != 1) {
-            log_error(inst, "%s: derivative order %d is not supported (allowed range [1, 1]: "
-                      "maxOutputDerivativeOrder is 1)", function, order[i]);
+            log_error(inst,
+                      "%s: derivative order %d is not supported (allowed range [1, 1]: "
+                      "maxOutputDerivativeOrder is 1)",
+                      function, order[i]);
             return 0;
         }
     return 1;
@@ -1063,8 +1086,10 @@ Status core_set_input_derivatives(Instance *inst, const char *function, const un
             return STATUS_ERROR;
         }
         if (!isfinite(value[i])) {
-            log_error(inst, "%s: derivative of %s (value reference %u) = %g is not a finite "
-                      "number", function, REAL_VARIABLES[vr[i]].name, vr[i], value[i]);
+            log_error(inst,
+                      "%s: derivative of %s (value reference %u) = %g is not a finite "
+                      "number",
+                      function, REAL_VARIABLES[vr[i]].name, vr[i], value[i]);
             return STATUS_ERROR;
         }
     }
@@ -1101,9 +1126,10 @@ Status core_get_output_derivatives(Instance *inst, const char *function, const u
     model_output_rates(&inst->constants, inst->s.time, inst->s.real, dx, inst->s.input_derivative, rate);
     for (i = 0; i < nvr; i++)
         if (!isfinite(rate[vr[i]])) { /* in-range values can still overflow (huge parameters, 0 times inf) */
-            log_discard(inst, "%s: the derivative of %s (value reference %u) is not finite "
-                        "for the current parameters, inputs and states; no value handed out", function,
-                        REAL_VARIABLES[vr[i]].name, vr[i]);
+            log_discard(inst,
+                        "%s: the derivative of %s (value reference %u) is not finite "
+                        "for the current parameters, inputs and states; no value handed out",
+                        function, REAL_VARIABLES[vr[i]].name, vr[i]);
             return STATUS_DISCARD;
         }
     for (i = 0; i < nvr; i++) value[i] = rate[vr[i]];
@@ -1131,9 +1157,10 @@ static Status take_requested_inputs(Instance *inst, const char *function, double
         const double slope = (end[i] - start[i]) / H;
         if (!inst->inputs_requested[i] || end[i] == start[i]) continue;
         if (!isfinite(slope)) {
-            log_error(inst, "%s: input %s goes from %g at t = %.17g to %g at t = %.17g (set in the intermediate "
-                      "update): its slope over the step is not finite", function, REAL_VARIABLES[INPUT_VRS[i]].name,
-                      start[i], t, end[i], t + H);
+            log_error(inst,
+                      "%s: input %s goes from %g at t = %.17g to %g at t = %.17g (set in the intermediate "
+                      "update): its slope over the step is not finite",
+                      function, REAL_VARIABLES[INPUT_VRS[i]].name, start[i], t, end[i], t + H);
             return STATUS_ERROR;
         }
         inst->s.input_derivative[i] = slope;
@@ -1149,8 +1176,10 @@ Status core_do_step(Instance *inst, const char *function, double t, double H)
 {
     Status status;
     if (!isfinite(t) || fabs(t - inst->s.time) > 1e-9 * (fabs(t) > 1.0 ? fabs(t) : 1.0)) {
-        log_error(inst, "%s: currentCommunicationPoint = %.17g is not the FMU's time %.17g "
-                  "(allowed deviation 1e-9 max(1, |t|))", function, t, inst->s.time);
+        log_error(inst,
+                  "%s: currentCommunicationPoint = %.17g is not the FMU's time %.17g "
+                  "(allowed deviation 1e-9 max(1, |t|))",
+                  function, t, inst->s.time);
         return STATUS_ERROR;
     }
     if (!(H > 0.0) || !isfinite(H) || !isfinite(t + H)) {
@@ -1158,9 +1187,10 @@ Status core_do_step(Instance *inst, const char *function, double t, double H)
         return STATUS_ERROR;
     }
     if (!(t + H > t)) { /* the state would move while the time stays */
-        log_error(inst, "%s: communicationStepSize = %g does not advance the time from "
-                  "currentCommunicationPoint = %.17g (its resolution there is %g)", function, H, t,
-                  nextafter(t, INFINITY) - t);
+        log_error(inst,
+                  "%s: communicationStepSize = %g does not advance the time from "
+                  "currentCommunicationPoint = %.17g (its resolution there is %g)",
+                  function, H, t, nextafter(t, INFINITY) - t);
         return STATUS_ERROR;
     }
     if (!ensure_constants(inst, function)) return STATUS_ERROR;
@@ -1190,8 +1220,10 @@ static int known_valid(Instance *inst, const char *function, unsigned int vr)
 {
     if (!real_reference_known(inst, function, vr)) return 0;
     if (state_index(vr) >= 0 || input_index(vr) >= 0) return 1;
-    log_error(inst, "%s: known %s (value reference %u) is not a continuous state or a Real input (allowed: "
-              "the states and inputs)", function, REAL_VARIABLES[vr].name, vr);
+    log_error(inst,
+              "%s: known %s (value reference %u) is not a continuous state or a Real input (allowed: "
+              "the states and inputs)",
+              function, REAL_VARIABLES[vr].name, vr);
     return 0;
 }
 
@@ -1202,8 +1234,10 @@ static int unknown_valid(Instance *inst, const char *function, unsigned int vr)
     if (state_index(vr - N_STATES) >= 0 || /* a derivative: the derivatives follow the states */
         (REAL_VARIABLES[vr].causality == CAUSALITY_OUTPUT && REAL_VARIABLES[vr].variability == VARIABILITY_CONTINUOUS))
         return 1;
-    log_error(inst, "%s: unknown %s (value reference %u) is not a state derivative or a continuous output "
-              "(allowed: those)", function, REAL_VARIABLES[vr].name, vr);
+    log_error(inst,
+              "%s: unknown %s (value reference %u) is not a state derivative or a continuous output "
+              "(allowed: those)",
+              function, REAL_VARIABLES[vr].name, vr);
     return 0;
 }
 
@@ -1227,8 +1261,10 @@ static void jacobian_times(Instance *inst, const double point[N_REAL], const uns
     size_t k;
     int i;
     for (k = 0; k < nknown; k++) {
-        if (state_index(known[k]) >= 0) seed_x[state_index(known[k])] += seed[k];
-        else seed_u[input_index(known[k])] += seed[k];
+        if (state_index(known[k]) >= 0)
+            seed_x[state_index(known[k])] += seed[k];
+        else
+            seed_u[input_index(known[k])] += seed[k];
     }
     memset(change, 0, N_REAL * sizeof *change);
     model_directional(&inst->constants, inst->s.time, point, dx, seed_x, seed_u, ddx, change);
@@ -1239,12 +1275,12 @@ static void jacobian_times(Instance *inst, const double point[N_REAL], const uns
 }
 
 static int derivative_arguments_valid(Instance *inst, const char *function, const unsigned int unknown[],
-                                      size_t n_unknown, const unsigned int known[], size_t n_known,
-                                      const double seed[], size_t n_seed)
+                                      size_t n_unknown, const unsigned int known[], size_t n_known, const double seed[],
+                                      size_t n_seed)
 {
     size_t i;
-    if (!core_arrays_present(inst, function, n_known, known, known) || !core_arrays_present(inst, function, n_unknown,
-                                                                                           unknown, unknown) ||
+    if (!core_arrays_present(inst, function, n_known, known, known) ||
+        !core_arrays_present(inst, function, n_unknown, unknown, unknown) ||
         !core_arrays_present(inst, function, n_seed, seed, seed))
         return 0;
     for (i = 0; i < n_known; i++)
@@ -1266,9 +1302,10 @@ static Status sensitivity_finite(Instance *inst, const char *function, double va
 {
     if (isfinite(value)) return STATUS_OK;
     /* in-range values can still overflow (huge parameters, 0 times inf) */
-    log_discard(inst, "%s: the derivative of %s with respect to %s is not finite for the current parameters, "
-                "inputs and states; no value handed out", function,
-                unknown == NO_VARIABLE ? "the seeded unknowns" : REAL_VARIABLES[unknown].name,
+    log_discard(inst,
+                "%s: the derivative of %s with respect to %s is not finite for the current parameters, "
+                "inputs and states; no value handed out",
+                function, unknown == NO_VARIABLE ? "the seeded unknowns" : REAL_VARIABLES[unknown].name,
                 known == NO_VARIABLE ? "the seeded knowns" : REAL_VARIABLES[known].name);
     return STATUS_DISCARD;
 }
@@ -1276,8 +1313,10 @@ static Status sensitivity_finite(Instance *inst, const char *function, double va
 #if N_CONSTRAINTS > 0
 static Status partial_derivatives_refused(Instance *inst, const char *function)
 {
-    log_error(inst, "%s: this FMU has constraints and provides no partial derivatives (providesDirectionalDerivative "
-              "= false): the constrained motion's switch at contacts is not differentiated", function);
+    log_error(inst,
+              "%s: this FMU has constraints and provides no partial derivatives (providesDirectionalDerivative "
+              "= false): the constrained motion's switch at contacts is not differentiated",
+              function);
     return STATUS_ERROR;
 }
 #endif
@@ -1300,17 +1339,17 @@ Status core_get_directional_derivative(Instance *inst, const char *function, con
     if (status != STATUS_OK) return status;
     jacobian_times(inst, point, known, n_known, seed, change);
     for (i = 0; i < n_unknown; i++) {
-        status = sensitivity_finite(inst, function, change[unknown[i]], unknown[i],
-                                    n_known == 1 ? known[0] : NO_VARIABLE);
+        status =
+            sensitivity_finite(inst, function, change[unknown[i]], unknown[i], n_known == 1 ? known[0] : NO_VARIABLE);
         if (status != STATUS_OK) return status;
     }
     for (i = 0; i < n_unknown; i++) sensitivity[i] = change[unknown[i]];
     return STATUS_OK;
 }
 
-Status core_get_adjoint_derivative(Instance *inst, const char *function, const unsigned int unknown[],
-                                   size_t n_unknown, const unsigned int known[], size_t n_known,
-                                   const double seed[], double sensitivity[])
+Status core_get_adjoint_derivative(Instance *inst, const char *function, const unsigned int unknown[], size_t n_unknown,
+                                   const unsigned int known[], size_t n_known, const double seed[],
+                                   double sensitivity[])
 {
 #if N_CONSTRAINTS > 0
     (void)unknown, (void)n_unknown, (void)known, (void)n_known, (void)seed, (void)sensitivity;

@@ -115,8 +115,8 @@ typedef struct {
 FMI2_Export const char *fmi2GetTypesPlatform(void);
 FMI2_Export const char *fmi2GetVersion(void);
 FMI2_Export fmi2Status fmi2SetDebugLogging(fmi2Component, fmi2Boolean, size_t, const fmi2String[]);
-FMI2_Export fmi2Component fmi2Instantiate(fmi2String, fmi2Type, fmi2String, fmi2String,
-                                          const fmi2CallbackFunctions *, fmi2Boolean, fmi2Boolean);
+FMI2_Export fmi2Component fmi2Instantiate(fmi2String, fmi2Type, fmi2String, fmi2String, const fmi2CallbackFunctions *,
+                                          fmi2Boolean, fmi2Boolean);
 FMI2_Export void fmi2FreeInstance(fmi2Component);
 FMI2_Export fmi2Status fmi2SetupExperiment(fmi2Component, fmi2Boolean, fmi2Real, fmi2Real, fmi2Boolean, fmi2Real);
 FMI2_Export fmi2Status fmi2EnterInitializationMode(fmi2Component);

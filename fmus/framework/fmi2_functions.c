@@ -12,14 +12,46 @@
 #define ME_READABLE (MS_INITIALIZATION | MS_EVENT | MS_CONTINUOUS | MS_TERMINATED | MS_ERROR)
 
 typedef enum {
-    FN_SET_DEBUG_LOGGING, FN_SETUP_EXPERIMENT, FN_ENTER_INITIALIZATION_MODE, FN_EXIT_INITIALIZATION_MODE,
-    FN_TERMINATE, FN_RESET, FN_GET_REAL, FN_GET_INTEGER, FN_GET_BOOLEAN, FN_GET_STRING, FN_SET_REAL,
-    FN_SET_INTEGER, FN_SET_BOOLEAN, FN_SET_STRING, FN_GET_FMU_STATE, FN_SET_FMU_STATE, FN_FREE_FMU_STATE,
-    FN_SERIALIZED_SIZE, FN_SERIALIZE, FN_DESERIALIZE, FN_GET_DIRECTIONAL_DERIVATIVE, FN_ENTER_EVENT_MODE,
-    FN_NEW_DISCRETE_STATES, FN_ENTER_CONTINUOUS_TIME_MODE, FN_COMPLETED_INTEGRATOR_STEP, FN_SET_TIME,
-    FN_SET_CONTINUOUS_STATES, FN_GET_DERIVATIVES, FN_GET_EVENT_INDICATORS, FN_GET_CONTINUOUS_STATES,
-    FN_GET_NOMINALS, FN_SET_REAL_INPUT_DERIVATIVES, FN_GET_REAL_OUTPUT_DERIVATIVES, FN_DO_STEP, FN_CANCEL_STEP,
-    FN_GET_STATUS, FN_GET_REAL_STATUS, FN_GET_INTEGER_STATUS, FN_GET_BOOLEAN_STATUS, FN_GET_STRING_STATUS,
+    FN_SET_DEBUG_LOGGING,
+    FN_SETUP_EXPERIMENT,
+    FN_ENTER_INITIALIZATION_MODE,
+    FN_EXIT_INITIALIZATION_MODE,
+    FN_TERMINATE,
+    FN_RESET,
+    FN_GET_REAL,
+    FN_GET_INTEGER,
+    FN_GET_BOOLEAN,
+    FN_GET_STRING,
+    FN_SET_REAL,
+    FN_SET_INTEGER,
+    FN_SET_BOOLEAN,
+    FN_SET_STRING,
+    FN_GET_FMU_STATE,
+    FN_SET_FMU_STATE,
+    FN_FREE_FMU_STATE,
+    FN_SERIALIZED_SIZE,
+    FN_SERIALIZE,
+    FN_DESERIALIZE,
+    FN_GET_DIRECTIONAL_DERIVATIVE,
+    FN_ENTER_EVENT_MODE,
+    FN_NEW_DISCRETE_STATES,
+    FN_ENTER_CONTINUOUS_TIME_MODE,
+    FN_COMPLETED_INTEGRATOR_STEP,
+    FN_SET_TIME,
+    FN_SET_CONTINUOUS_STATES,
+    FN_GET_DERIVATIVES,
+    FN_GET_EVENT_INDICATORS,
+    FN_GET_CONTINUOUS_STATES,
+    FN_GET_NOMINALS,
+    FN_SET_REAL_INPUT_DERIVATIVES,
+    FN_GET_REAL_OUTPUT_DERIVATIVES,
+    FN_DO_STEP,
+    FN_CANCEL_STEP,
+    FN_GET_STATUS,
+    FN_GET_REAL_STATUS,
+    FN_GET_INTEGER_STATUS,
+    FN_GET_BOOLEAN_STATUS,
+    FN_GET_STRING_STATUS,
     FN_COUNT
 } Function;
 
@@ -124,11 +156,10 @@ fmi2Component fmi2Instantiate(fmi2String instanceName, fmi2Type fmuType, fmi2Str
                   (int)fmuType);
         return NULL;
     }
-    return core_instantiate("fmi2Instantiate",
-                            fmuType == fmi2CoSimulation ? INTERFACE_CO_SIMULATION : INTERFACE_MODEL_EXCHANGE,
-                            instanceName, fmuGUID, emit_fmi2, (void (*)(void))functions->logger,
-                            functions->componentEnvironment, functions->allocateMemory, functions->freeMemory,
-                            loggingOn);
+    return core_instantiate(
+        "fmi2Instantiate", fmuType == fmi2CoSimulation ? INTERFACE_CO_SIMULATION : INTERFACE_MODEL_EXCHANGE,
+        instanceName, fmuGUID, emit_fmi2, (void (*)(void))functions->logger, functions->componentEnvironment,
+        functions->allocateMemory, functions->freeMemory, loggingOn);
 }
 
 void fmi2FreeInstance(fmi2Component c) { core_free((Instance *)c); }
@@ -139,8 +170,8 @@ fmi2Status fmi2SetDebugLogging(fmi2Component c, fmi2Boolean loggingOn, size_t nC
     CALL(FN_SET_DEBUG_LOGGING, core_set_logging(inst, NAME(FN_SET_DEBUG_LOGGING), loggingOn, nCategories, categories));
 }
 
-fmi2Status fmi2SetupExperiment(fmi2Component c, fmi2Boolean toleranceDefined, fmi2Real tolerance,
-                               fmi2Real startTime, fmi2Boolean stopTimeDefined, fmi2Real stopTime)
+fmi2Status fmi2SetupExperiment(fmi2Component c, fmi2Boolean toleranceDefined, fmi2Real tolerance, fmi2Real startTime,
+                               fmi2Boolean stopTimeDefined, fmi2Real stopTime)
 {
     (void)toleranceDefined;
     (void)tolerance;
@@ -223,8 +254,8 @@ fmi2Status fmi2SetString(fmi2Component c, const fmi2ValueReference vr[], size_t 
 }
 
 fmi2Status fmi2GetDirectionalDerivative(fmi2Component c, const fmi2ValueReference vUnknown_ref[], size_t nUnknown,
-                                        const fmi2ValueReference vKnown_ref[], size_t nKnown,
-                                        const fmi2Real dvKnown[], fmi2Real dvUnknown[])
+                                        const fmi2ValueReference vKnown_ref[], size_t nKnown, const fmi2Real dvKnown[],
+                                        fmi2Real dvUnknown[])
 {
     CALL(FN_GET_DIRECTIONAL_DERIVATIVE,
          core_get_directional_derivative(inst, NAME(FN_GET_DIRECTIONAL_DERIVATIVE), vUnknown_ref, nUnknown, vKnown_ref,
@@ -261,8 +292,8 @@ fmi2Status fmi2SerializeFMUstate(fmi2Component c, fmi2FMUstate FMUstate, fmi2Byt
 fmi2Status fmi2DeSerializeFMUstate(fmi2Component c, const fmi2Byte serializedState[], size_t size,
                                    fmi2FMUstate *FMUstate)
 {
-    CALL(FN_DESERIALIZE, core_deserialize(inst, NAME(FN_DESERIALIZE), (const unsigned char *)serializedState, size,
-                                          FMUstate));
+    CALL(FN_DESERIALIZE,
+         core_deserialize(inst, NAME(FN_DESERIALIZE), (const unsigned char *)serializedState, size, FMUstate));
 }
 
 /* ---------------------------------------------------------------- Model Exchange */

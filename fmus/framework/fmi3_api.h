@@ -150,10 +150,10 @@ FMI3_Export fmi3Instance fmi3InstantiateCoSimulation(fmi3String, fmi3String, fmi
                                                      fmi3Boolean, fmi3Boolean, const fmi3ValueReference[], size_t,
                                                      fmi3InstanceEnvironment, fmi3LogMessageCallback,
                                                      fmi3IntermediateUpdateCallback);
-FMI3_Export fmi3Instance fmi3InstantiateScheduledExecution(fmi3String, fmi3String, fmi3String, fmi3Boolean,
-                                                           fmi3Boolean, fmi3InstanceEnvironment,
-                                                           fmi3LogMessageCallback, fmi3ClockUpdateCallback,
-                                                           fmi3LockPreemptionCallback, fmi3UnlockPreemptionCallback);
+FMI3_Export fmi3Instance fmi3InstantiateScheduledExecution(fmi3String, fmi3String, fmi3String, fmi3Boolean, fmi3Boolean,
+                                                           fmi3InstanceEnvironment, fmi3LogMessageCallback,
+                                                           fmi3ClockUpdateCallback, fmi3LockPreemptionCallback,
+                                                           fmi3UnlockPreemptionCallback);
 FMI3_Export void fmi3FreeInstance(fmi3Instance);
 FMI3_Export fmi3Status fmi3EnterInitializationMode(fmi3Instance, fmi3Boolean, fmi3Float64, fmi3Float64, fmi3Boolean,
                                                    fmi3Float64);

@@ -23,15 +23,44 @@
 #define CS_OUTSIDE_CALLBACKS (CS_ANY & ~MS_INTERMEDIATE)
 
 typedef enum {
-    FN_SET_DEBUG_LOGGING, FN_ENTER_INITIALIZATION_MODE, FN_EXIT_INITIALIZATION_MODE, FN_ENTER_EVENT_MODE,
-    FN_TERMINATE, FN_RESET, FN_GET, FN_SET, FN_CLOCKS, FN_GET_NUMBER_OF_VARIABLE_DEPENDENCIES,
-    FN_GET_VARIABLE_DEPENDENCIES, FN_GET_FMU_STATE, FN_SET_FMU_STATE, FN_FREE_FMU_STATE, FN_SERIALIZED_SIZE,
-    FN_SERIALIZE, FN_DESERIALIZE, FN_GET_DIRECTIONAL_DERIVATIVE, FN_GET_ADJOINT_DERIVATIVE,
-    FN_ENTER_CONFIGURATION_MODE, FN_EXIT_CONFIGURATION_MODE, FN_EVALUATE_DISCRETE_STATES, FN_UPDATE_DISCRETE_STATES,
-    FN_ENTER_CONTINUOUS_TIME_MODE, FN_COMPLETED_INTEGRATOR_STEP, FN_SET_TIME, FN_SET_CONTINUOUS_STATES,
-    FN_GET_CONTINUOUS_STATE_DERIVATIVES, FN_GET_EVENT_INDICATORS, FN_GET_CONTINUOUS_STATES, FN_GET_NOMINALS,
-    FN_GET_NUMBER_OF_EVENT_INDICATORS, FN_GET_NUMBER_OF_CONTINUOUS_STATES, FN_ENTER_STEP_MODE,
-    FN_GET_OUTPUT_DERIVATIVES, FN_DO_STEP, FN_ACTIVATE_MODEL_PARTITION, FN_COUNT
+    FN_SET_DEBUG_LOGGING,
+    FN_ENTER_INITIALIZATION_MODE,
+    FN_EXIT_INITIALIZATION_MODE,
+    FN_ENTER_EVENT_MODE,
+    FN_TERMINATE,
+    FN_RESET,
+    FN_GET,
+    FN_SET,
+    FN_CLOCKS,
+    FN_GET_NUMBER_OF_VARIABLE_DEPENDENCIES,
+    FN_GET_VARIABLE_DEPENDENCIES,
+    FN_GET_FMU_STATE,
+    FN_SET_FMU_STATE,
+    FN_FREE_FMU_STATE,
+    FN_SERIALIZED_SIZE,
+    FN_SERIALIZE,
+    FN_DESERIALIZE,
+    FN_GET_DIRECTIONAL_DERIVATIVE,
+    FN_GET_ADJOINT_DERIVATIVE,
+    FN_ENTER_CONFIGURATION_MODE,
+    FN_EXIT_CONFIGURATION_MODE,
+    FN_EVALUATE_DISCRETE_STATES,
+    FN_UPDATE_DISCRETE_STATES,
+    FN_ENTER_CONTINUOUS_TIME_MODE,
+    FN_COMPLETED_INTEGRATOR_STEP,
+    FN_SET_TIME,
+    FN_SET_CONTINUOUS_STATES,
+    FN_GET_CONTINUOUS_STATE_DERIVATIVES,
+    FN_GET_EVENT_INDICATORS,
+    FN_GET_CONTINUOUS_STATES,
+    FN_GET_NOMINALS,
+    FN_GET_NUMBER_OF_EVENT_INDICATORS,
+    FN_GET_NUMBER_OF_CONTINUOUS_STATES,
+    FN_ENTER_STEP_MODE,
+    FN_GET_OUTPUT_DERIVATIVES,
+    FN_DO_STEP,
+    FN_ACTIVATE_MODEL_PARTITION,
+    FN_COUNT
 } Function;
 
 /* For each function (or family of functions), the states it may be called in: Co-Simulation, Model
@@ -80,9 +109,9 @@ static const struct {
 };
 
 /* The state names of FMI 3.0, by bit position of the MS_ states. */
-static const char *const STATE_NAMES[] = {"Instantiated", "Initialization Mode", "Step Mode",
-                                          "Step Mode after a discarded step", "Event Mode", "Continuous-Time Mode",
-                                          "Terminated", "Error", "Intermediate Update Mode"};
+static const char *const STATE_NAMES[] = {
+    "Instantiated",         "Initialization Mode", "Step Mode", "Step Mode after a discarded step", "Event Mode",
+    "Continuous-Time Mode", "Terminated",          "Error",     "Intermediate Update Mode"};
 
 /* The instance, checked against the state machine for `function`: NULL means return fmi3Error. */
 static Instance *enter(fmi3Instance instance, Function fn, const char *function)
@@ -123,7 +152,10 @@ static void report_fmi3(Instance *inst, double t) { call_intermediate_update(ins
 /* At the start of a step, asking for the inputs the importer registered at t, the step's end
  * (intermediateStepFinished = false: a point the step will pass, as a stage of a Runge-Kutta step is); they may be
  * set, nothing may be read. */
-static void request_fmi3(Instance *inst, double t) { call_intermediate_update(inst, t, fmi3True, fmi3False, fmi3False); }
+static void request_fmi3(Instance *inst, double t)
+{
+    call_intermediate_update(inst, t, fmi3True, fmi3False, fmi3False);
+}
 
 /* FMI 3.0 gives every array its length: for scalar variables it must equal the number of references. */
 static int one_value_each(Instance *inst, const char *function, size_t nvr, size_t n_values)
@@ -137,8 +169,7 @@ static int one_value_each(Instance *inst, const char *function, size_t nvr, size
 /* ---------------------------------------------------------------- instantiation */
 
 static Instance *instantiate(const char *function, Interface type, fmi3String name, fmi3String token,
-                             fmi3Boolean logging_on, fmi3InstanceEnvironment environment,
-                             fmi3LogMessageCallback logger)
+                             fmi3Boolean logging_on, fmi3InstanceEnvironment environment, fmi3LogMessageCallback logger)
 {
     Instance *inst = core_instantiate(function, type, name, token, emit_fmi3, (void (*)(void))logger, environment,
                                       calloc, free, logging_on);
@@ -163,7 +194,8 @@ const char *fmi3GetVersion(void) { return fmi3Version; }
 
 fmi3Instance fmi3InstantiateModelExchange(fmi3String instanceName, fmi3String instantiationToken,
                                           fmi3String resourcePath, fmi3Boolean visible, fmi3Boolean loggingOn,
-                                          fmi3InstanceEnvironment instanceEnvironment, fmi3LogMessageCallback logMessage)
+                                          fmi3InstanceEnvironment instanceEnvironment,
+                                          fmi3LogMessageCallback logMessage)
 {
     (void)resourcePath;
     (void)visible;
@@ -209,8 +241,10 @@ fmi3Instance fmi3InstantiateCoSimulation(fmi3String instanceName, fmi3String ins
         } else if (vr < N_REAL && core_variable(vr)->causality == CAUSALITY_OUTPUT) {
             reports_outputs = 1;
         } else {
-            log_error(inst, "fmi3InstantiateCoSimulation: requiredIntermediateVariables[%lu] = %u is not a Float64 "
-                      "output or input (only those have intermediateUpdate = true)", (unsigned long)i, vr);
+            log_error(inst,
+                      "fmi3InstantiateCoSimulation: requiredIntermediateVariables[%lu] = %u is not a Float64 "
+                      "output or input (only those have intermediateUpdate = true)",
+                      (unsigned long)i, vr);
             core_free(inst);
             return NULL;
         }
@@ -311,18 +345,24 @@ static int readable_now(Instance *inst, const char *function, const fmi3ValueRef
     size_t i;
     if (inst->s.machine_state != MS_INTERMEDIATE) return 1;
     if (inst->asking_inputs) {
-        log_error(inst, "%s: the FMU asks for inputs at the step's end (intermediateVariableGetAllowed = false): "
-                  "nothing can be read until it reports a step", function);
+        log_error(inst,
+                  "%s: the FMU asks for inputs at the step's end (intermediateVariableGetAllowed = false): "
+                  "nothing can be read until it reports a step",
+                  function);
         return 0;
     }
     i = core_first_not_output(vr, n, TIME_VR);
     if (i == n) return 1;
     if (core_variable(vr[i]) == NULL)
-        log_error(inst, "%s: unknown value reference %u: in Intermediate Update Mode only the outputs "
-                  "(intermediateUpdate = true) can be read", function, vr[i]);
+        log_error(inst,
+                  "%s: unknown value reference %u: in Intermediate Update Mode only the outputs "
+                  "(intermediateUpdate = true) can be read",
+                  function, vr[i]);
     else
-        log_error(inst, "%s: variable %s (value reference %u) is not an output: in Intermediate Update Mode only the "
-                  "outputs (intermediateUpdate = true) can be read", function, core_variable(vr[i])->name, vr[i]);
+        log_error(inst,
+                  "%s: variable %s (value reference %u) is not an output: in Intermediate Update Mode only the "
+                  "outputs (intermediateUpdate = true) can be read",
+                  function, core_variable(vr[i])->name, vr[i]);
     return 0;
 }
 
@@ -334,10 +374,11 @@ static int settable_now(Instance *inst, const fmi3ValueReference vr[], size_t n)
     for (i = 0; i < n; i++) {
         const int input = vr[i] < N_REAL ? core_input_index(vr[i]) : -1;
         if (!inst->asking_inputs || input < 0 || !inst->inputs_requested[input]) {
-            log_error(inst, "fmi3SetFloat64: %s (value reference %u) cannot be set here: in Intermediate Update Mode "
+            log_error(inst,
+                      "fmi3SetFloat64: %s (value reference %u) cannot be set here: in Intermediate Update Mode "
                       "only the inputs registered in requiredIntermediateVariables, when the FMU asks for them "
-                      "(intermediateVariableSetRequested = true)", vr[i] < N_REAL ? core_variable(vr[i])->name : "?",
-                      vr[i]);
+                      "(intermediateVariableSetRequested = true)",
+                      vr[i] < N_REAL ? core_variable(vr[i])->name : "?", vr[i]);
             return 0;
         }
     }
@@ -369,8 +410,8 @@ fmi3Status fmi3GetFloat64(fmi3Instance instance, const fmi3ValueReference vr[], 
     return fmi3OK;
 }
 
-fmi3Status fmi3SetFloat64(fmi3Instance instance, const fmi3ValueReference vr[], size_t nvr,
-                          const fmi3Float64 values[], size_t nValues)
+fmi3Status fmi3SetFloat64(fmi3Instance instance, const fmi3ValueReference vr[], size_t nvr, const fmi3Float64 values[],
+                          size_t nValues)
 {
     Instance *inst = enter(instance, FN_SET, __func__);
     size_t i;
@@ -380,8 +421,10 @@ fmi3Status fmi3SetFloat64(fmi3Instance instance, const fmi3ValueReference vr[], 
     if (!settable_now(inst, vr, nvr)) return fmi3Error;
     for (i = 0; i < nvr; i++)
         if (vr[i] == TIME_VR) {
-            log_error(inst, "fmi3SetFloat64: variable time (value reference %u) is the independent variable: it moves "
-                      "with fmi3SetTime (Model Exchange) or fmi3DoStep (Co-Simulation)", vr[i]);
+            log_error(inst,
+                      "fmi3SetFloat64: variable time (value reference %u) is the independent variable: it moves "
+                      "with fmi3SetTime (Model Exchange) or fmi3DoStep (Co-Simulation)",
+                      vr[i]);
             return fmi3Error;
         }
     return (fmi3Status)core_set_real(inst, __func__, vr, nvr, values);
@@ -407,8 +450,8 @@ static int integer_type_matches(Instance *inst, const char *function, const fmi3
     return 1;
 }
 
-static fmi3Status get_integers(fmi3Instance instance, const char *function, const fmi3ValueReference vr[],
-                               size_t nvr, void *values, size_t nValues, int counters)
+static fmi3Status get_integers(fmi3Instance instance, const char *function, const fmi3ValueReference vr[], size_t nvr,
+                               void *values, size_t nValues, int counters)
 {
     Instance *inst = enter(instance, FN_GET, function);
     if (!inst) return fmi3Error;
@@ -454,8 +497,10 @@ fmi3Status fmi3SetUInt64(fmi3Instance instance, const fmi3ValueReference vr[], s
     if (nvr == 0) return fmi3OK;
     v = core_variable(vr[0]);
     if (v) { /* every UInt64 variable is a counter, which only the FMU sets */
-        log_error(inst, "fmi3SetUInt64: variable %s (value reference %u) is a calculated output (a counter): only the "
-                  "FMU sets it", v->name, vr[0]);
+        log_error(inst,
+                  "fmi3SetUInt64: variable %s (value reference %u) is a calculated output (a counter): only the "
+                  "FMU sets it",
+                  v->name, vr[0]);
         return fmi3Error;
     }
     return (fmi3Status)core_no_such_variables(inst, __func__, nvr, vr, "UInt64");
@@ -547,7 +592,7 @@ fmi3Status fmi3GetNumberOfVariableDependencies(fmi3Instance instance, fmi3ValueR
     (void)valueReference, (void)nDependencies;
     if (!inst) return fmi3Error;
     log_error(inst, "fmi3GetNumberOfVariableDependencies: not provided (providesPerElementDependencies is false; the "
-              "model description's ModelStructure lists the dependencies)");
+                    "model description's ModelStructure lists the dependencies)");
     return fmi3Error;
 }
 
@@ -561,7 +606,7 @@ fmi3Status fmi3GetVariableDependencies(fmi3Instance instance, fmi3ValueReference
     (void)dependencyKinds, (void)nDependencies;
     if (!inst) return fmi3Error;
     log_error(inst, "fmi3GetVariableDependencies: not provided (providesPerElementDependencies is false; the model "
-              "description's ModelStructure lists the dependencies)");
+                    "description's ModelStructure lists the dependencies)");
     return fmi3Error;
 }
 
@@ -570,9 +615,11 @@ static int derivative_sizes_match(Instance *inst, const char *function, size_t n
                                   size_t nSensitivity, size_t sensed, const char *other)
 {
     if (nSeed == seeded && nSensitivity == sensed) return 1;
-    log_error(inst, "%s: nSeed = %lu and nSensitivity = %lu, but there are %lu %s and %lu %s, all scalars "
-              "(nSeed must equal n%s, nSensitivity n%s)", function, (unsigned long)nSeed, (unsigned long)nSensitivity,
-              (unsigned long)seeded, side, (unsigned long)sensed, other, side[0] == 'k' ? "Knowns" : "Unknowns",
+    log_error(inst,
+              "%s: nSeed = %lu and nSensitivity = %lu, but there are %lu %s and %lu %s, all scalars "
+              "(nSeed must equal n%s, nSensitivity n%s)",
+              function, (unsigned long)nSeed, (unsigned long)nSensitivity, (unsigned long)seeded, side,
+              (unsigned long)sensed, other, side[0] == 'k' ? "Knowns" : "Unknowns",
               side[0] == 'k' ? "Unknowns" : "Knowns");
     return 0;
 }
@@ -623,8 +670,7 @@ fmi3Status fmi3SerializedFMUStateSize(fmi3Instance instance, fmi3FMUState FMUSta
     CALL(FN_SERIALIZED_SIZE, core_serialized_size(inst, __func__, FMUState, size));
 }
 
-fmi3Status fmi3SerializeFMUState(fmi3Instance instance, fmi3FMUState FMUState, fmi3Byte serializedState[],
-                                 size_t size)
+fmi3Status fmi3SerializeFMUState(fmi3Instance instance, fmi3FMUState FMUState, fmi3Byte serializedState[], size_t size)
 {
     CALL(FN_SERIALIZE, core_serialize(inst, __func__, FMUState, serializedState, size));
 }
@@ -692,7 +738,10 @@ fmi3Status fmi3CompletedIntegratorStep(fmi3Instance instance, fmi3Boolean noSetF
     return fmi3OK;
 }
 
-fmi3Status fmi3SetTime(fmi3Instance instance, fmi3Float64 time) { CALL(FN_SET_TIME, core_set_time(inst, __func__, time)); }
+fmi3Status fmi3SetTime(fmi3Instance instance, fmi3Float64 time)
+{
+    CALL(FN_SET_TIME, core_set_time(inst, __func__, time));
+}
 
 fmi3Status fmi3SetContinuousStates(fmi3Instance instance, const fmi3Float64 continuousStates[],
                                    size_t nContinuousStates)
@@ -700,8 +749,7 @@ fmi3Status fmi3SetContinuousStates(fmi3Instance instance, const fmi3Float64 cont
     CALL(FN_SET_CONTINUOUS_STATES, core_set_continuous_states(inst, __func__, continuousStates, nContinuousStates));
 }
 
-fmi3Status fmi3GetContinuousStateDerivatives(fmi3Instance instance, fmi3Float64 derivatives[],
-                                             size_t nContinuousStates)
+fmi3Status fmi3GetContinuousStateDerivatives(fmi3Instance instance, fmi3Float64 derivatives[], size_t nContinuousStates)
 {
     CALL(FN_GET_CONTINUOUS_STATE_DERIVATIVES, core_get_derivatives(inst, __func__, derivatives, nContinuousStates));
 }
@@ -736,7 +784,8 @@ static fmi3Status number_of(fmi3Instance instance, Function fn, const char *func
 
 fmi3Status fmi3GetNumberOfEventIndicators(fmi3Instance instance, size_t *nEventIndicators)
 {
-    return number_of(instance, FN_GET_NUMBER_OF_EVENT_INDICATORS, __func__, nEventIndicators, (size_t)N_EVENT_INDICATORS);
+    return number_of(instance, FN_GET_NUMBER_OF_EVENT_INDICATORS, __func__, nEventIndicators,
+                     (size_t)N_EVENT_INDICATORS);
 }
 
 fmi3Status fmi3GetNumberOfContinuousStates(fmi3Instance instance, size_t *nContinuousStates)
@@ -770,7 +819,7 @@ fmi3Status fmi3DoStep(fmi3Instance instance, fmi3Float64 currentCommunicationPoi
     if (!inst) return fmi3Error;
     if (!eventHandlingNeeded || !terminateSimulation || !earlyReturn || !lastSuccessfulTime) {
         log_error(inst, "fmi3DoStep: eventHandlingNeeded, terminateSimulation, earlyReturn and lastSuccessfulTime "
-                  "must not be NULL");
+                        "must not be NULL");
         return fmi3Error;
     }
     status = core_do_step(inst, __func__, currentCommunicationPoint, communicationStepSize);

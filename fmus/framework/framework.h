@@ -36,16 +36,23 @@
 #define INTERNAL_DATA_DECLARATION extern INTERNAL
 #endif
 
-/* Return codes, numbered as both FMI versions number theirs (fmi2Status, fmi3Status). */
-typedef enum { STATUS_OK = 0, STATUS_WARNING = 1, STATUS_DISCARD = 2, STATUS_ERROR = 3 } Status;
+#include "fmi_status.h"
 typedef enum { INTERFACE_MODEL_EXCHANGE, INTERFACE_CO_SIMULATION } Interface;
 
 typedef enum {
-    CAUSALITY_PARAMETER, CAUSALITY_CALCULATED_PARAMETER, CAUSALITY_INPUT, CAUSALITY_OUTPUT,
-    CAUSALITY_LOCAL, CAUSALITY_INDEPENDENT
+    CAUSALITY_PARAMETER,
+    CAUSALITY_CALCULATED_PARAMETER,
+    CAUSALITY_INPUT,
+    CAUSALITY_OUTPUT,
+    CAUSALITY_LOCAL,
+    CAUSALITY_INDEPENDENT
 } Causality;
 typedef enum {
-    VARIABILITY_CONSTANT, VARIABILITY_FIXED, VARIABILITY_TUNABLE, VARIABILITY_DISCRETE, VARIABILITY_CONTINUOUS
+    VARIABILITY_CONSTANT,
+    VARIABILITY_FIXED,
+    VARIABILITY_TUNABLE,
+    VARIABILITY_DISCRETE,
+    VARIABILITY_CONTINUOUS
 } Variability;
 typedef enum { INITIAL_EXACT, INITIAL_APPROX, INITIAL_CALCULATED } Initial;
 
@@ -90,23 +97,24 @@ enum {
 };
 #define MS_LAST MS_INTERMEDIATE
 /* The states an instance of each interface can be in. */
-#define CS_ANY (MS_INSTANTIATED | MS_INITIALIZATION | MS_STEP_COMPLETE | MS_STEP_FAILED | MS_TERMINATED | MS_ERROR | \
-                MS_INTERMEDIATE)
+#define CS_ANY \
+    (MS_INSTANTIATED | MS_INITIALIZATION | MS_STEP_COMPLETE | MS_STEP_FAILED | MS_TERMINATED | MS_ERROR | \
+     MS_INTERMEDIATE)
 #define ME_ANY (MS_INSTANTIATED | MS_INITIALIZATION | MS_EVENT | MS_CONTINUOUS | MS_TERMINATED | MS_ERROR)
 
 /* Integrator memory that must survive between fmi2DoStep calls. */
 typedef struct {
     uint64_t n_rhs, n_steps, n_rejected;
-    uint64_t n_jacobians, n_iterations;            /* the implicit methods' Newton solves */
-    uint64_t n_events;                             /* impacts, activations, releases, compliant onsets and ends */
+    uint64_t n_jacobians, n_iterations; /* the implicit methods' Newton solves */
+    uint64_t n_events; /* impacts, activations, releases, compliant onsets and ends */
     double ab_history[AB_MAX_STEPS][STATE_SLOTS]; /* past right-hand sides, ring buffer */
-    int32_t ab_count;                              /* valid entries in ab_history */
-    int32_t ab_head;                               /* slot of the newest entry */
-    double ab_step;                                /* substep the history was taken with */
-    double step_proposal;                          /* rkf45, gbs: next step size, 0 = start from h */
-    int32_t gbs_columns;                           /* gbs: the column to reach next step, 0 = from tol */
-    int32_t gbs_rejected;                          /* gbs: the last step was rejected (no growth next) */
-    int32_t ab_restarted;                          /* 1: the history starts again after an event (restarter) */
+    int32_t ab_count; /* valid entries in ab_history */
+    int32_t ab_head; /* slot of the newest entry */
+    double ab_step; /* substep the history was taken with */
+    double step_proposal; /* rkf45, gbs: next step size, 0 = start from h */
+    int32_t gbs_columns; /* gbs: the column to reach next step, 0 = from tol */
+    int32_t gbs_rejected; /* gbs: the last step was rejected (no growth next) */
+    int32_t ab_restarted; /* 1: the history starts again after an event (restarter) */
 } IntegratorMemory;
 
 /* Everything that makes up the FMU state: plain numbers only, so it serializes as bytes and
@@ -129,9 +137,9 @@ typedef void (*MessageSink)(const Instance *inst, Status status, const char *cat
 
 struct Instance {
     SimState s;
-    ModelConst constants;   /* derived from the parameters by model_prepare */
+    ModelConst constants; /* derived from the parameters by model_prepare */
     int constants_valid;
-    int outputs_valid;      /* calculated outputs in s.real match the state */
+    int outputs_valid; /* calculated outputs in s.real match the state */
     /* With outputs_valid: the derivatives in s.real are f(t, x, u) at the state's time, exactly as a fixed-step
      * method evaluates it there with the inputs held (set by a step whose inputs held; an input set since clears
      * it), so the next step takes them as its first evaluation. */
@@ -143,7 +151,7 @@ struct Instance {
     char *name;
     MessageSink emit;
     void (*api_logger)(void); /* the importer's logger, cast back to its type by the API layer */
-    void *environment;        /* the importer's pointer handed back with every message */
+    void *environment; /* the importer's pointer handed back with every message */
     /* Called at every accepted internal step of a communication step, with the state of that step
      * in place and the machine state MS_INTERMEDIATE; NULL when the importer asked for no reports. */
     void (*report_step)(Instance *inst, double t);
@@ -236,7 +244,8 @@ INTERNAL void core_free(Instance *inst);
 /* Whether the call may come in the instance's machine state (masks of MS_ bits per interface);
  * logs an illegal call sequence otherwise. */
 INTERNAL int core_call_allowed(Instance *inst, const char *function, unsigned cs, unsigned me);
-INTERNAL Status core_set_logging(Instance *inst, const char *function, int on, size_t n, const char *const categories[]);
+INTERNAL Status core_set_logging(Instance *inst, const char *function, int on, size_t n,
+                                 const char *const categories[]);
 INTERNAL void core_reset(Instance *inst);
 INTERNAL Status core_setup(Instance *inst, const char *function, double start, int stop_defined, double stop);
 INTERNAL Status core_exit_initialization(Instance *inst, const char *function);
@@ -250,8 +259,8 @@ INTERNAL Status core_set_real(Instance *inst, const char *function, const unsign
                               const double value[]);
 /* Integer variables (enumerations and the counters) by reference, as `width`-byte integers: 4 for
  * FMI 2.0's Integer (the counters saturate at INT32_MAX), 8 for FMI 3.0's Int64 and UInt64. */
-INTERNAL Status core_get_integer(Instance *inst, const char *function, const unsigned int vr[], size_t n,
-                                 void *value, int width);
+INTERNAL Status core_get_integer(Instance *inst, const char *function, const unsigned int vr[], size_t n, void *value,
+                                 int width);
 INTERNAL Status core_set_integer(Instance *inst, const char *function, const unsigned int vr[], size_t n,
                                  const void *value, int width);
 INTERNAL Status core_no_such_variables(Instance *inst, const char *function, size_t n, const unsigned int vr[],
@@ -326,7 +335,7 @@ INTERNAL int model_evaluate(const ModelConst *c, double t, const double *u, doub
 #endif
 /* rate[vr] = exact time derivative of every Real output vr; du are the input derivatives. */
 INTERNAL void model_output_rates(const ModelConst *c, double t, const double *real, const double *dx, const double *du,
-                        double *rate);
+                                 double *rate);
 /* The exact Jacobian times a seed: for a change seed_x of the states and seed_u of the inputs at the
  * state in real[] (dx its derivatives, NULL without states), the change ddx of the state
  * derivatives and change[vr] of every calculated Real output. */
@@ -338,9 +347,8 @@ INTERNAL void model_advance_inputs(double *real, const double *du, double H);
 /* Taylor coefficients 1 ... order of the state (x[i][0] given) at t, u0 (NULL: no forces) and du the
  * inputs and their rates there, w the work series; 0 where the mass matrix is not positive definite. The
  * arrays do not overlap (restrict): the compiler keeps what it loaded across the stores to the series. */
-INTERNAL int model_taylor(const ModelConst *restrict c, double t, const double *restrict u0,
-                          const double *restrict du, int order, double (*restrict x)[TAYLOR_SLOTS],
-                          double (*restrict w)[TAYLOR_SLOTS]);
+INTERNAL int model_taylor(const ModelConst *restrict c, double t, const double *restrict u0, const double *restrict du,
+                          int order, double (*restrict x)[TAYLOR_SLOTS], double (*restrict w)[TAYLOR_SLOTS]);
 #endif
 
 #if N_CONSTRAINTS > 0
@@ -381,13 +389,11 @@ INTERNAL int project_constraints(const ModelConst *c, int32_t active, double t, 
 /* An event: the state projected onto the constraints that held up to it; impacts (Newton's restitution,
  * simultaneous ones one contact at a time until none approaches), then activations and releases (velocities
  * jump, positions stay; counted into events); the state projected onto the constraints that hold after it. 0 where the constraints are dependent. */
-INTERNAL int handle_event(const ModelConst *c, int32_t *active, double t, double *x, const double *u,
-                          uint64_t *events);
+INTERNAL int handle_event(const ModelConst *c, int32_t *active, double t, double *x, const double *u, uint64_t *events);
 /* Whether rigid unilateral constraint i touches without approaching and its force would not push: the exact
  * motion leaves it (a string gone slack, a ball lifting off), so a step's dip across it is the method's error,
  * not an event. */
-INTERNAL int constraint_departs(const ModelConst *c, int32_t active, int i, double t, const double *x,
-                                const double *u);
+INTERNAL int constraint_departs(const ModelConst *c, int32_t active, int i, double t, const double *x, const double *u);
 /* Whether a rigid constraint acts in `active` while `solver` integrates free motion only (FREE_MOTION_ONLY: taylor,
  * stormer_verlet); if so, says which and why in `message`: acting `when` ("at the start", "from"), at time t
  * (NAN: none). Costs nothing but the test where it refuses nothing. */

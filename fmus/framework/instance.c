@@ -40,7 +40,8 @@ void flush_subnormals_begin(Instance *inst)
 {
     inst->caller_float_control = float_control();
     inst->flushing = 1;
-    if ((inst->caller_float_control & FLUSH_BITS) != FLUSH_BITS) set_float_control(inst->caller_float_control | FLUSH_BITS);
+    if ((inst->caller_float_control & FLUSH_BITS) != FLUSH_BITS)
+        set_float_control(inst->caller_float_control | FLUSH_BITS);
 }
 
 int rounding_to_nearest(const Instance *inst) { return (inst->caller_float_control & ROUNDING_BITS) == TO_NEAREST; }

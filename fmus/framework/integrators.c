@@ -5,6 +5,8 @@
  * on polynomials. */
 #include "integrators.h"
 
+/* the coefficients laid out as their tables are, not as the formatter would */
+/* clang-format off */
 INTERNAL_DATA const ButcherTableau TABLEAU_EULER = {"euler", 1, 1, {0}, {{0}}, {1}, {0}, 0, {0}};
 
 INTERNAL_DATA const ButcherTableau TABLEAU_MIDPOINT = {"midpoint", 2, 2, {0, 0.5}, {{0}, {0.5}}, {0, 1}, {0}, 0, {0}};
@@ -79,6 +81,7 @@ INTERNAL_DATA const AdamsBashforth ABM5 = {
     {251.0 / 720, 646.0 / 720, -264.0 / 720, 106.0 / 720, -19.0 / 720}, &TABLEAU_RK4};
 INTERNAL_DATA const AdamsBashforth ABM6 = {"abm6", 6, AB6_BETA, &TABLEAU_NYSTROM5, 1,
                              {475.0 / 1440, 1427.0 / 1440, -798.0 / 1440, 482.0 / 1440, -173.0 / 1440, 27.0 / 1440}, &TABLEAU_NYSTROM5};
+/* clang-format on */
 
 #if N_STATES > 0
 
@@ -152,7 +155,8 @@ ENGINE_INLINE StepWeights step_weights(const ButcherTableau *tab, double h)
 {
     StepWeights w;
     int s, j;
-    UNROLL for (s = 0; s < tab->stages; s++) {
+    UNROLL for (s = 0; s < tab->stages; s++)
+    {
         w.c[s] = tab->c[s] * h;
         w.b[s] = tab->b[s] * h;
         w.e[s] = tab->e[s] * h;
@@ -168,7 +172,8 @@ ENGINE_INLINE double weighted_sum(const double *w, const double *scaled, int cou
 {
     double sum = 0.0;
     int j, l, started = 0;
-    UNROLL for (j = 0; j < count; j++) {
+    UNROLL for (j = 0; j < count; j++)
+    {
         int leads = w[j] != 0.0; /* the first of its weight */
         UNROLL for (l = 0; l < j; l++) leads = leads && w[l] != w[j];
         if (leads) {
@@ -190,7 +195,8 @@ ENGINE_INLINE void runge_kutta_step(const Evaluator *f, int mode, const ButcherT
     double y[STATE_SLOTS];
     int s, i;
     UNROLL for (i = 0; i < N_STATES; i++) k[0][i] = f0[i];
-    UNROLL for (s = 1; s < tab->stages; s++) {
+    UNROLL for (s = 1; s < tab->stages; s++)
+    {
         UNROLL for (i = 0; i < N_STATES; i++) y[i] = x[i] + weighted_sum(tab->a[s], w->a[s], s, k, i);
         evaluate(f, mode, t + w->c[s], y, k[s]);
     }
@@ -241,7 +247,7 @@ ENGINE_INLINE int rejected(RightHandSide *f, double t, double *x, const double *
  * compiler keeps out of the loop. Each substep's first stage is evaluated at the end of the substep before it, the
  * first one's before the loop, where the previous call's end check may give it: the loop's body stays one copy. */
 ENGINE_INLINE int64_t runge_kutta_steps(RightHandSide *f, int mode, const ButcherTableau *tab, double *x, double t0,
-                                       double hs, int64_t first, int64_t n, int check_each)
+                                        double hs, int64_t first, int64_t n, int check_each)
 {
     const Evaluator e = evaluator_of(f);
     const StepWeights w = step_weights(tab, hs);
@@ -283,7 +289,7 @@ ENGINE_INLINE int64_t runge_kutta_loop(RightHandSide *f, int mode, const Butcher
  * Runge-Kutta method steps (the restarter after an event), and its first stage, f(k), goes into the history all the
  * same. f(k) enters the ring given as f0 (NULL: evaluated here). */
 ENGINE_INLINE void adams_bashforth_slope(RightHandSide *f, const Evaluator *e, int mode, IntegratorMemory *m,
-                                        const double *x, double t, const double *f0)
+                                         const double *x, double t, const double *f0)
 {
     double *newest;
     m->ab_head = m->ab_head + 1 == AB_MAX_STEPS ? 0 : m->ab_head + 1; /* no division: the ring's next slot */
@@ -298,7 +304,7 @@ ENGINE_INLINE void adams_bashforth_slope(RightHandSide *f, const Evaluator *e, i
 
 /* The step from (t, x) once f(k) is the ring's newest entry. */
 ENGINE_INLINE void adams_bashforth_substep(RightHandSide *f, const Evaluator *e, int mode, const AdamsBashforth *ab,
-                                          IntegratorMemory *m, double *x, double t, double hs)
+                                           IntegratorMemory *m, double *x, double t, double hs)
 {
     double *newest = m->ab_history[m->ab_head];
     int j, q;
@@ -317,24 +323,27 @@ ENGINE_INLINE void adams_bashforth_substep(RightHandSide *f, const Evaluator *e,
     } else {
         /* the past slopes f(k - j), their ring positions found once per step rather than once per state */
         const double *past[AB_MAX_STEPS];
-        UNROLL for (j = 0; j < ab->steps; j++)
-            past[j] = m->ab_history[m->ab_head >= j ? m->ab_head - j : m->ab_head - j + AB_MAX_STEPS];
+        UNROLL for (j = 0; j < ab->steps; j++) past[j] =
+            m->ab_history[m->ab_head >= j ? m->ab_head - j : m->ab_head - j + AB_MAX_STEPS];
         if (!ab->corrected) {
-            UNROLL for (q = 0; q < N_STATES; q++) {
+            UNROLL for (q = 0; q < N_STATES; q++)
+            {
                 double sum = ab->beta[0] * newest[q];
                 UNROLL for (j = 1; j < ab->steps; j++) sum += ab->beta[j] * past[j][q];
                 x[q] += hs * sum;
             }
         } else { /* predict, evaluate, correct */
             double predicted[STATE_SLOTS], f_predicted[STATE_SLOTS];
-            UNROLL for (q = 0; q < N_STATES; q++) {
+            UNROLL for (q = 0; q < N_STATES; q++)
+            {
                 double sum = ab->beta[0] * newest[q];
                 UNROLL for (j = 1; j < ab->steps; j++) sum += ab->beta[j] * past[j][q];
                 predicted[q] = x[q] + hs * sum;
             }
             evaluate(e, mode, t + hs, predicted, f_predicted);
             f->evaluations++;
-            UNROLL for (q = 0; q < N_STATES; q++) {
+            UNROLL for (q = 0; q < N_STATES; q++)
+            {
                 double sum = ab->moulton[0] * f_predicted[q] + ab->moulton[1] * newest[q];
                 UNROLL for (j = 1; j + 1 < ab->steps; j++) sum += ab->moulton[j + 1] * past[j][q];
                 x[q] += hs * sum;
@@ -481,8 +490,8 @@ static int newton_solve(RightHandSide *f, const Evaluator *e, int mode, const Bu
     return 0;
 }
 
-static int implicit_step(RightHandSide *f, const Evaluator *e, int mode, const ButcherTableau *tab, double t,
-                         double h, double *x, double (*Z)[STATE_SLOTS])
+static int implicit_step(RightHandSide *f, const Evaluator *e, int mode, const ButcherTableau *tab, double t, double h,
+                         double *x, double (*Z)[STATE_SLOTS])
 {
     const int s = tab->stages;
     double J[STATE_SLOTS * STATE_SLOTS], slope[STATE_SLOTS], end_slope[STATE_SLOTS];
@@ -557,7 +566,8 @@ ENGINE_INLINE void accelerations(const Evaluator *e, int mode, double t, const d
 {
     double y[STATE_SLOTS];
     int j;
-    UNROLL for (j = 0; j < N_COORDINATES; j++) {
+    UNROLL for (j = 0; j < N_COORDINATES; j++)
+    {
         y[j] = x[j];
         y[N_COORDINATES + j] = 0.0;
     }
@@ -572,13 +582,14 @@ ENGINE_INLINE void verlet_step(const Evaluator *e, int mode, double damping, dou
     const double shrink = 1.0 / (1.0 + 0.5 * h * damping);
     double v_half[STATE_SLOTS];
     int j;
-    UNROLL for (j = 0; j < N_COORDINATES; j++) {
+    UNROLL for (j = 0; j < N_COORDINATES; j++)
+    {
         v_half[j] = (x[N_COORDINATES + j] + 0.5 * h * g[N_COORDINATES + j]) * shrink;
         x[j] += h * v_half[j];
     }
     accelerations(e, mode, t + h, x, g);
-    UNROLL for (j = 0; j < N_COORDINATES; j++)
-        x[N_COORDINATES + j] = v_half[j] + 0.5 * h * (g[N_COORDINATES + j] - damping * v_half[j]);
+    UNROLL for (j = 0; j < N_COORDINATES; j++) x[N_COORDINATES + j] =
+        v_half[j] + 0.5 * h * (g[N_COORDINATES + j] - damping * v_half[j]);
 }
 
 ENGINE_INLINE int64_t stormer_verlet_loop(RightHandSide *f, int mode, double *x, double t0, double hs, int64_t first,
@@ -631,27 +642,29 @@ double oscillation_growth(int solver, const RightHandSide *f, double y)
     }
     for (k = 0; k <= n; k++, power *= y) { /* i^k cycles through 1, i, -1, -i */
         const double term = coefficient[k] * power;
-        if (k % 4 == 0) re += term;
-        else if (k % 4 == 1) im += term;
-        else if (k % 4 == 2) re -= term;
-        else im -= term;
+        if (k % 4 == 0)
+            re += term;
+        else if (k % 4 == 1)
+            im += term;
+        else if (k % 4 == 2)
+            re -= term;
+        else
+            im -= term;
     }
     return isfinite(re) && isfinite(im) ? hypot(re, im) : INFINITY;
 }
 
+/* The switches over the methods expand the lists the methods table generates (model_description.h): a method of an
+ * engine with coefficients appears here by its entry in harness/fmi/methods.py and its coefficients above. */
+#define RETURN_COEFFICIENTS(solver, coefficients) \
+    case solver: return &coefficients;
+
 const ButcherTableau *tableau_of(int solver)
 {
     switch (solver) {
-    case SOLVER_EULER: return &TABLEAU_EULER;
-    case SOLVER_MIDPOINT: return &TABLEAU_MIDPOINT;
-    case SOLVER_HEUN: return &TABLEAU_HEUN;
-    case SOLVER_RK3: return &TABLEAU_RK3;
-    case SOLVER_RK4: return &TABLEAU_RK4;
-    case SOLVER_RKF45: return &TABLEAU_RKF45;
-    case SOLVER_NYSTROM5: return &TABLEAU_NYSTROM5;
-    case SOLVER_IMPLICIT_MIDPOINT: return &TABLEAU_IMPLICIT_MIDPOINT;
-    case SOLVER_GAUSS_LEGENDRE4: return &TABLEAU_GAUSS_LEGENDRE4;
-    case SOLVER_TRAPEZOID: return &TABLEAU_TRAPEZOID;
+        EXPLICIT_METHODS(RETURN_COEFFICIENTS)
+        EMBEDDED_METHODS(RETURN_COEFFICIENTS)
+        IMPLICIT_METHODS(RETURN_COEFFICIENTS)
     default: return NULL;
     }
 }
@@ -659,16 +672,7 @@ const ButcherTableau *tableau_of(int solver)
 const AdamsBashforth *adams_bashforth_of(int solver)
 {
     switch (solver) {
-    case SOLVER_AB2: return &AB2;
-    case SOLVER_AB3: return &AB3;
-    case SOLVER_AB4: return &AB4;
-    case SOLVER_AB5: return &AB5;
-    case SOLVER_AB6: return &AB6;
-    case SOLVER_ABM2: return &ABM2;
-    case SOLVER_ABM3: return &ABM3;
-    case SOLVER_ABM4: return &ABM4;
-    case SOLVER_ABM5: return &ABM5;
-    case SOLVER_ABM6: return &ABM6;
+        ADAMS_METHODS(RETURN_COEFFICIENTS)
     default: return NULL;
     }
 }
@@ -684,10 +688,7 @@ const char *solver_name(int solver)
 }
 
 /* Right-hand sides to fill rows 1 ... k, f at the step's start included: 1 + sum (n_i - 1) = 1 + k^2. */
-static uint64_t gbs_work(int k)
-{
-    return 1 + (uint64_t)k * (uint64_t)k;
-}
+static uint64_t gbs_work(int k) { return 1 + (uint64_t)k * (uint64_t)k; }
 
 double evaluations_needed(int solver, int history, double substeps, const RightHandSide *f)
 {
@@ -709,17 +710,13 @@ double evaluations_needed(int solver, int history, double substeps, const RightH
 
 /* The adaptive methods' floor: a step below it at time t has underflowed (t + h barely differs from t, or
  * the state is singular or too stiff there). */
-static double smallest_step(double t)
-{
-    return 1e-14 * (fabs(t) > 1.0 ? fabs(t) : 1.0);
-}
+static double smallest_step(double t) { return 1e-14 * (fabs(t) > 1.0 ? fabs(t) : 1.0); }
 
 /* ---- The Taylor method (thesis 4.10-4.13): x(t + s) = sum_{k=0..p} x_k s^k, the coefficients x_k from
  * the object's generated recurrences (model_taylor), summed by Horner's rule; a step counts
  * taylor_charge(p) evaluations. */
 
-static double (*taylor_coefficients(RightHandSide *f, int mode, double t, const double *x))[TAYLOR_SLOTS]
-{
+static double (*taylor_coefficients(RightHandSide *f, int mode, double t, const double *x)) [TAYLOR_SLOTS] {
     double (*series)[TAYLOR_SLOTS] = f->taylor_series;
     double u[INPUT_SLOTS];
     int i;
@@ -730,8 +727,8 @@ static double (*taylor_coefficients(RightHandSide *f, int mode, double t, const 
     for (i = 0; i < N_STATES; i++) series[i][0] = x[i];
     for (i = 0; i < N_INPUTS; i++) u[i] = f->u0[i] + (mode == FORCES_VARY ? (t - f->t0) * f->du[i] : 0.0);
     f->evaluations += taylor_charge(f->taylor_order);
-    if (!model_taylor(f->model, t, mode == FORCES_NONE ? NULL : u, mode == FORCES_VARY ? f->du : NULL,
-                      f->taylor_order, series, f->taylor_work))
+    if (!model_taylor(f->model, t, mode == FORCES_NONE ? NULL : u, mode == FORCES_VARY ? f->du : NULL, f->taylor_order,
+                      series, f->taylor_work))
         return NULL;
     memcpy(f->taylor_at, x, N_STATES * sizeof(double));
     f->taylor_at_t = t;
@@ -773,8 +770,8 @@ static int64_t taylor_loop(RightHandSide *f, int mode, double *x, double t0, dou
  * with all four zero (rest, or a polynomial of low degree) is the step unbounded. Stops early
  * (returning the time reached) when the work bound is reached, when the step underflows, or when a
  * result is not acceptable. */
-double integrate_taylor(RightHandSide *f, IntegratorMemory *memory, double *x, double t0, double t_end,
-                              double tol, int check_each)
+double integrate_taylor(RightHandSide *f, IntegratorMemory *memory, double *x, double t0, double t_end, double tol,
+                        int check_each)
 {
     const int mode = forces_mode(f), order = f->taylor_order;
     const double safety = exp(-0.7 / (order - 1));
@@ -843,13 +840,15 @@ ENGINE_INLINE void modified_midpoint(const Evaluator *e, int mode, double t, dou
     const double h = H / n;
     double previous[STATE_SLOTS], slope[STATE_SLOTS];
     int m, i;
-    UNROLL for (i = 0; i < N_STATES; i++) {
+    UNROLL for (i = 0; i < N_STATES; i++)
+    {
         previous[i] = x[i];
         y[i] = x[i] + h * f0[i];
     }
     for (m = 1; m < n; m++) {
         evaluate(e, mode, t + m * h, y, slope);
-        UNROLL for (i = 0; i < N_STATES; i++) {
+        UNROLL for (i = 0; i < N_STATES; i++)
+        {
             const double next = previous[i] + 2.0 * h * slope[i];
             previous[i] = y[i];
             y[i] = next;
@@ -926,33 +925,22 @@ static int64_t extrapolation_loop(RightHandSide *f, int mode, double *x, double 
     return n;
 }
 
+#define EXPLICIT_LOOP(solver, tableau) \
+    case solver: return runge_kutta_loop(f, mode, &tableau, x, t0, hs, first, n, check_each);
+#define ADAMS_LOOP(solver, coefficients) \
+    case solver: return adams_bashforth_loop(f, mode, &coefficients, memory, x, t0, hs, first, n, check_each);
+#define IMPLICIT_LOOP(solver, tableau) \
+    case solver: return implicit_loop(f, mode, &tableau, x, t0, hs, first, n, check_each);
+
 /* One case per method, each with a constant tableau, so that each loop is compiled for its own
  * coefficients (and, inlined per forces mode, for its inputs). Returns -1 for an unknown solver. */
-ENGINE_INLINE int64_t fixed_loop(RightHandSide *f, int mode, int solver, IntegratorMemory *memory, double *x,
-                                 double t0, double hs, int64_t first, int64_t n, int check_each)
+ENGINE_INLINE int64_t fixed_loop(RightHandSide *f, int mode, int solver, IntegratorMemory *memory, double *x, double t0,
+                                 double hs, int64_t first, int64_t n, int check_each)
 {
     switch (solver) {
-    case SOLVER_EULER: return runge_kutta_loop(f, mode, &TABLEAU_EULER, x, t0, hs, first, n, check_each);
-    case SOLVER_MIDPOINT: return runge_kutta_loop(f, mode, &TABLEAU_MIDPOINT, x, t0, hs, first, n, check_each);
-    case SOLVER_HEUN: return runge_kutta_loop(f, mode, &TABLEAU_HEUN, x, t0, hs, first, n, check_each);
-    case SOLVER_RK3: return runge_kutta_loop(f, mode, &TABLEAU_RK3, x, t0, hs, first, n, check_each);
-    case SOLVER_RK4: return runge_kutta_loop(f, mode, &TABLEAU_RK4, x, t0, hs, first, n, check_each);
-    case SOLVER_NYSTROM5: return runge_kutta_loop(f, mode, &TABLEAU_NYSTROM5, x, t0, hs, first, n, check_each);
-    case SOLVER_AB2: return adams_bashforth_loop(f, mode, &AB2, memory, x, t0, hs, first, n, check_each);
-    case SOLVER_AB3: return adams_bashforth_loop(f, mode, &AB3, memory, x, t0, hs, first, n, check_each);
-    case SOLVER_AB4: return adams_bashforth_loop(f, mode, &AB4, memory, x, t0, hs, first, n, check_each);
-    case SOLVER_AB5: return adams_bashforth_loop(f, mode, &AB5, memory, x, t0, hs, first, n, check_each);
-    case SOLVER_AB6: return adams_bashforth_loop(f, mode, &AB6, memory, x, t0, hs, first, n, check_each);
-    case SOLVER_ABM2: return adams_bashforth_loop(f, mode, &ABM2, memory, x, t0, hs, first, n, check_each);
-    case SOLVER_ABM3: return adams_bashforth_loop(f, mode, &ABM3, memory, x, t0, hs, first, n, check_each);
-    case SOLVER_ABM4: return adams_bashforth_loop(f, mode, &ABM4, memory, x, t0, hs, first, n, check_each);
-    case SOLVER_ABM5: return adams_bashforth_loop(f, mode, &ABM5, memory, x, t0, hs, first, n, check_each);
-    case SOLVER_ABM6: return adams_bashforth_loop(f, mode, &ABM6, memory, x, t0, hs, first, n, check_each);
-    case SOLVER_IMPLICIT_MIDPOINT:
-        return implicit_loop(f, mode, &TABLEAU_IMPLICIT_MIDPOINT, x, t0, hs, first, n, check_each);
-    case SOLVER_GAUSS_LEGENDRE4:
-        return implicit_loop(f, mode, &TABLEAU_GAUSS_LEGENDRE4, x, t0, hs, first, n, check_each);
-    case SOLVER_TRAPEZOID: return implicit_loop(f, mode, &TABLEAU_TRAPEZOID, x, t0, hs, first, n, check_each);
+        EXPLICIT_METHODS(EXPLICIT_LOOP)
+        ADAMS_METHODS(ADAMS_LOOP)
+        IMPLICIT_METHODS(IMPLICIT_LOOP)
     case SOLVER_TAYLOR: return taylor_loop(f, mode, x, t0, hs, first, n, check_each);
     case SOLVER_GBS: return extrapolation_loop(f, mode, x, t0, hs, first, n, check_each);
 #if SPLIT_ACCELERATIONS
@@ -976,11 +964,21 @@ int64_t integrate_fixed(RightHandSide *f, int solver, IntegratorMemory *memory, 
     return done;
 }
 
+#define IS_METHOD(solver, coefficients) \
+    case solver: return 1;
+
+/* Whether the method is an explicit Runge-Kutta tableau's. */
+static int explicit_method(int solver)
+{
+    switch (solver) {
+        EXPLICIT_METHODS(IS_METHOD)
+    default: return 0;
+    }
+}
+
 int steps_from_slope(int solver)
 {
-    const ButcherTableau *tab = tableau_of(solver);
-    return solver == SOLVER_GBS || (tab && !tab->implicit && solver != SOLVER_RKF45) ||
-           (SPLIT_ACCELERATIONS && solver == SOLVER_STORMER_VERLET);
+    return solver == SOLVER_GBS || explicit_method(solver) || (SPLIT_ACCELERATIONS && solver == SOLVER_STORMER_VERLET);
 }
 
 ENGINE_INLINE void mode_slope(const Evaluator *e, int mode, int solver, double t, const double *x, double *dx)
@@ -1012,6 +1010,9 @@ void slope_accelerations(const RightHandSide *f, int solver, const double *slope
         a[j] = slope[N_COORDINATES + j] - (solver == SOLVER_STORMER_VERLET ? f->model->d * x[N_COORDINATES + j] : 0.0);
 }
 
+#define EXPLICIT_STEP(solver, tableau) \
+    case solver: runge_kutta_step_of(e, mode, &tableau, t, h, x, f0, NULL); break;
+
 /* One step of steps_from_slope's methods with f0 given, for a constant forces mode. */
 ENGINE_INLINE void slope_step(RightHandSide *f, const Evaluator *e, int mode, int solver, double t, double h, double *x,
                               const double *f0)
@@ -1031,12 +1032,8 @@ ENGINE_INLINE void slope_step(RightHandSide *f, const Evaluator *e, int mode, in
     } else { /* each with its constant tableau, as fixed_loop has them */
         const ButcherTableau *tab = tableau_of(solver);
         switch (solver) {
-        case SOLVER_EULER: runge_kutta_step_of(e, mode, &TABLEAU_EULER, t, h, x, f0, NULL); break;
-        case SOLVER_MIDPOINT: runge_kutta_step_of(e, mode, &TABLEAU_MIDPOINT, t, h, x, f0, NULL); break;
-        case SOLVER_HEUN: runge_kutta_step_of(e, mode, &TABLEAU_HEUN, t, h, x, f0, NULL); break;
-        case SOLVER_RK3: runge_kutta_step_of(e, mode, &TABLEAU_RK3, t, h, x, f0, NULL); break;
-        case SOLVER_RK4: runge_kutta_step_of(e, mode, &TABLEAU_RK4, t, h, x, f0, NULL); break;
-        default: runge_kutta_step_of(e, mode, &TABLEAU_NYSTROM5, t, h, x, f0, NULL); break;
+            EXPLICIT_METHODS(EXPLICIT_STEP)
+        default: break;
         }
         f->evaluations += (uint64_t)(tab->stages - 1);
     }
@@ -1085,8 +1082,9 @@ static double scaled_error(const double *x, const double *a, const double *b, do
     return sqrt(norm / N_STATES);
 }
 
-double integrate_adaptive(RightHandSide *f, IntegratorMemory *memory, double *x, double t0, double t_end,
-                          double h_initial, double tol, int check_each)
+/* An embedded method's pass, for its constant tableau (inlined per method, as fixed_loop's). */
+ENGINE_INLINE double embedded_pass(RightHandSide *f, const ButcherTableau *tableau, IntegratorMemory *memory, double *x,
+                                   double t0, double t_end, double h_initial, double tol, int check_each)
 {
     const Evaluator e = evaluator_of(f);
     const int mode = forces_mode(f);
@@ -1100,19 +1098,20 @@ double integrate_adaptive(RightHandSide *f, IntegratorMemory *memory, double *x,
         const double step = last ? remaining : h;
         double norm, factor;
         int accept;
-        if (!adaptive_step_start(f, &e, mode, t, x, f0, &have_f0, (uint64_t)TABLEAU_RKF45.stages)) break;
+        if (!adaptive_step_start(f, &e, mode, t, x, f0, &have_f0, (uint64_t)tableau->stages)) break;
         memcpy(y, x, sizeof y);
-        runge_kutta_step_of(&e, mode, &TABLEAU_RKF45, t, step, y, f0, err);
-        f->evaluations += (uint64_t)(TABLEAU_RKF45.stages - 1);
+        runge_kutta_step_of(&e, mode, tableau, t, step, y, f0, err);
+        f->evaluations += (uint64_t)(tableau->stages - 1);
         norm = scaled_error(x, err, NULL, tol);
         accept = norm <= 1.0 && regular(f, y);
         if (accept && check_each) {
             f->checks++;
             accept = acceptable(f, t + step, y);
         }
-        /* Order-4 error estimate: the step scales with 0.8 norm^(-1/5), kept within [0.2, 5]; the safety
-         * factor 0.8 (rather than 0.9) halves the rejections on the pendulums at the same total cost. */
-        factor = norm > 0.0 ? 0.8 * pow(norm, -0.2) : 5.0;
+        /* An error estimate of order p (rkf45: 4): the step scales with 0.8 norm^(-1/(p + 1)), kept within
+         * [0.2, 5]; the safety factor 0.8 (rather than 0.9) halves the rejections on the pendulums at the same total
+         * cost. */
+        factor = norm > 0.0 ? 0.8 * pow(norm, -1.0 / (tableau->order + 1)) : 5.0;
         if (!(factor >= 0.2)) factor = 0.2; /* also catches NaN */
         if (factor > 5.0) factor = 5.0;
         if (accept) {
@@ -1138,6 +1137,18 @@ double integrate_adaptive(RightHandSide *f, IntegratorMemory *memory, double *x,
     }
     memory->step_proposal = h;
     return t < t_end ? t : t_end;
+}
+
+#define EMBEDDED_PASS(solver, tableau) \
+    case solver: return embedded_pass(f, &tableau, memory, x, t0, t_end, h_initial, tol, check_each);
+
+double integrate_adaptive(RightHandSide *f, int solver, IntegratorMemory *memory, double *x, double t0, double t_end,
+                          double h_initial, double tol, int check_each)
+{
+    switch (solver) {
+        EMBEDDED_METHODS(EMBEDDED_PASS)
+    default: return t0;
+    }
 }
 
 double integrate_extrapolation(RightHandSide *f, IntegratorMemory *memory, double *x, double t0, double t_end,
@@ -1189,22 +1200,24 @@ double integrate_extrapolation(RightHandSide *f, IntegratorMemory *memory, doubl
             previous = err;
         }
         if (k > top) k = top;
-        if (accepted && (!regular(f, table[k - 1]) ||
-                         (check_each && (f->checks++, !acceptable(f, t + step, table[k - 1]))))) {
+        if (accepted &&
+            (!regular(f, table[k - 1]) || (check_each && (f->checks++, !acceptable(f, t + step, table[k - 1]))))) {
             accepted = 0;
             failed = 1;
         }
         /* the next target: one column down if that is clearly cheaper per unit of time; one up after an
          * accepted step if the column reached was clearly cheaper than the one below it */
         next = k;
-        if (k > 2 && work_for[k - 1] < 0.8 * work_for[k]) next = k - 1;
+        if (k > 2 && work_for[k - 1] < 0.8 * work_for[k])
+            next = k - 1;
         else if (accepted && !rejected_before && k + 1 <= cap && (k == 2 || work_for[k] < 0.9 * work_for[k - 1]))
             next = k + 1;
         if (next > cap) next = cap;
         if (next < 2) next = 2;
         if (accepted) {
             /* a column above the one computed: its step from the work ratio */
-            const double proposal = next > k ? step_for[k] * (double)gbs_work(next) / (double)gbs_work(k) : step_for[next];
+            const double proposal =
+                next > k ? step_for[k] * (double)gbs_work(next) / (double)gbs_work(k) : step_for[next];
             memcpy(x, table[k - 1], STATE_SLOTS * sizeof(double));
             t = last ? t_end : t + step;
             have_f0 = 0;

@@ -30,7 +30,7 @@ typedef struct {
     const char *name;
     int steps;
     double beta[AB_MAX_COEFFICIENTS]; /* weights of f(k), f(k-1), ..., f(k-steps+1) */
-    const ButcherTableau *starter;    /* Runge-Kutta method of order >= steps - 1 for the first steps */
+    const ButcherTableau *starter; /* Runge-Kutta method of order >= steps - 1 for the first steps */
     /* Adams-Moulton corrector of the same order (PECE), or none (all zero): weights of the
      * predicted f(k+1), then f(k), ..., f(k-steps+2) */
     int corrected;
@@ -41,9 +41,6 @@ typedef struct {
      * error constant. */
     const ButcherTableau *restarter;
 } AdamsBashforth;
-
-INTERNAL_DATA_DECLARATION const ButcherTableau TABLEAU_EULER, TABLEAU_MIDPOINT, TABLEAU_HEUN, TABLEAU_RK3, TABLEAU_RK4,
-    TABLEAU_NYSTROM5, TABLEAU_RKF45, TABLEAU_IMPLICIT_MIDPOINT, TABLEAU_GAUSS_LEGENDRE4, TABLEAU_TRAPEZOID;
 
 /* Newton's iteration of the implicit methods: at most this many iterations per step. With c_k the
  * largest scaled correction max |dZ_i| / (1 + |x_i|) of iteration k: converged when c_k, or the
@@ -60,7 +57,17 @@ INTERNAL_DATA_DECLARATION const ButcherTableau TABLEAU_EULER, TABLEAU_MIDPOINT, 
 /* Substeps between two checks of the state in a fixed-step pass: a failure costs at most this many
  * substeps redone, and the checks cost one evaluation per block. */
 #define CHECK_BLOCK 256
-INTERNAL_DATA_DECLARATION const AdamsBashforth AB2, AB3, AB4, AB5, AB6, ABM2, ABM3, ABM4, ABM5, ABM6;
+
+/* The methods' coefficients, declared from the lists the methods table generates (model_description.h: an object
+ * with states has them). */
+#ifdef EXPLICIT_METHODS
+#define DECLARE_TABLEAU(solver, table) INTERNAL_DATA_DECLARATION const ButcherTableau table;
+#define DECLARE_ADAMS(solver, coefficients) INTERNAL_DATA_DECLARATION const AdamsBashforth coefficients;
+EXPLICIT_METHODS(DECLARE_TABLEAU)
+EMBEDDED_METHODS(DECLARE_TABLEAU)
+IMPLICIT_METHODS(DECLARE_TABLEAU)
+ADAMS_METHODS(DECLARE_ADAMS)
+#endif
 
 /* A Jacobian kept with the point it was taken at: the implicit methods' trial steps from one point (locating an event
  * inside a step) take it again instead of computing it again. Valid while the constraints acting stay the same. */
@@ -115,8 +122,8 @@ typedef struct {
  * first + n - 1 of hs from t0, substep i starting at t0 + i hs. With check_each, stops before the
  * first substep whose result is not acceptable and leaves x, memory at the last good substep.
  * Returns the number of substeps completed. */
-INTERNAL int64_t integrate_fixed(RightHandSide *f, int solver, IntegratorMemory *memory, double *x, double t0, double hs,
-                        int64_t first, int64_t n, int check_each);
+INTERNAL int64_t integrate_fixed(RightHandSide *f, int solver, IntegratorMemory *memory, double *x, double t0,
+                                 double hs, int64_t first, int64_t n, int check_each);
 
 /* Whether a fixed step of `solver` starts from one evaluation at its start (its slope: f(t, x) for the explicit
  * Runge-Kutta methods and gbs, the accelerations a(t, q) for Stormer-Verlet): the event stepper evaluates it once
@@ -132,13 +139,12 @@ INTERNAL void slope_accelerations(const RightHandSide *f, int solver, const doub
 INTERNAL void step_from_slope(RightHandSide *f, int solver, IntegratorMemory *memory, double *x, double t, double h,
                               const double *f0);
 
-/* Fehlberg 4(5) with step-size control from t0 to t_end; starts from memory->step_proposal (or
- * h_initial) and leaves its next proposal there. A step whose result fails model_state_ok (or, with
- * check_each, is not acceptable) is rejected like one with too large an error. Returns the time
- * reached: t_end on success, earlier when the step size underflowed (x is then the last accepted
- * state). */
-INTERNAL double integrate_adaptive(RightHandSide *f, IntegratorMemory *memory, double *x, double t0, double t_end,
-                          double h_initial, double tol, int check_each);
+/* An embedded Runge-Kutta method (rkf45: Fehlberg 4(5)) with step-size control from t0 to t_end; starts from
+ * memory->step_proposal (or h_initial) and leaves its next proposal there. A step whose result fails model_state_ok
+ * (or, with check_each, is not acceptable) is rejected like one with too large an error. Returns the time reached:
+ * t_end on success, earlier when the step size underflowed (x is then the last accepted state). */
+INTERNAL double integrate_adaptive(RightHandSide *f, int solver, IntegratorMemory *memory, double *x, double t0,
+                                   double t_end, double h_initial, double tol, int check_each);
 
 /* The Taylor method of order f->taylor_order from t0 to t_end with the step chosen from its last four
  * coefficients for tol (after Jorba and Zou, who take two); no step is rejected. Returns the time reached: t_end on
@@ -153,8 +159,8 @@ INTERNAL double integrate_taylor(RightHandSide *f, IntegratorMemory *memory, dou
  * proposals there. A step whose result fails model_state_ok (or, with check_each, is not acceptable) is
  * rejected and cut to a quarter. Returns the time reached: t_end on success, earlier at the work bound
  * (f->out_of_budget) or where the step size underflowed (x is then the last accepted state). */
-INTERNAL double integrate_extrapolation(RightHandSide *f, IntegratorMemory *memory, double *x, double t0,
-                                        double t_end, double h_initial, double tol, int check_each);
+INTERNAL double integrate_extrapolation(RightHandSide *f, IntegratorMemory *memory, double *x, double t0, double t_end,
+                                        double h_initial, double tol, int check_each);
 
 /* The growth per fixed step of `solver` on an undamped oscillation with h omega = y: |R(i y)| of its stability
  * function, for the explicit Runge-Kutta methods (from the tableau), the Taylor method (its order from f) and

@@ -181,8 +181,10 @@ int linear_model_prepare(LinearModel *lm, const double *M0, const double *K0, co
         if (fabs(lm->omega2[i]) > largest) largest = fabs(lm->omega2[i]);
     for (i = 0; i < LM_N; i++) {
         if (lm->omega2[i] < -1e-12 * (largest > 1.0 ? largest : 1.0)) {
-            snprintf(message, size, "model = linear: the rest state is unstable for these parameters (a normal mode "
-                     "has omega^2 = %g < 0)", lm->omega2[i]);
+            snprintf(message, size,
+                     "model = linear: the rest state is unstable for these parameters (a normal mode "
+                     "has omega^2 = %g < 0)",
+                     lm->omega2[i]);
             return 1;
         }
         if (lm->omega2[i] < 0.0) lm->omega2[i] = 0.0;
@@ -261,8 +263,8 @@ void linear_model_step(const LinearModel *lm, double d, double H, const double *
     }
 }
 
-void linear_model_energies(const LinearModel *lm, const double *real, const double *dx, double *E_kin,
-                           double *E_pot, double *rate_kin, double *rate_pot)
+void linear_model_energies(const LinearModel *lm, const double *real, const double *dx, double *E_kin, double *E_pot,
+                           double *rate_kin, double *rate_pot)
 {
     double kin = 0.0, pot = 0.0, dkin = 0.0, dpot = 0.0;
     int i, j;

@@ -9,7 +9,6 @@
 
 #include "integrators.h"
 
-
 /* Forgets the Adams-Bashforth history and the adaptive methods' step and column proposals: after a reset, or when solver,
  * h or tol change. */
 void restart_integrator(Instance *inst)
@@ -43,8 +42,10 @@ Status step_to(Instance *inst, const char *function, double t, double H)
     if (!model_outputs(&inst->constants, t + H, NULL, inst->s.real) || first_non_finite(inst->s.real, N_REAL) >= 0) {
         memcpy(inst->s.real, before, sizeof before);
         inst->outputs_valid = 0;
-        log_discard(inst, "%s: singular configuration or non-finite outputs at t = %.17g; "
-                    "last successful time %.17g", function, t + H, t);
+        log_discard(inst,
+                    "%s: singular configuration or non-finite outputs at t = %.17g; "
+                    "last successful time %.17g",
+                    function, t + H, t);
         inst->s.last_successful_time = t;
         return STATUS_DISCARD;
     }
@@ -229,8 +230,10 @@ static int64_t report_substeps(Instance *inst, RightHandSide *f, int solver, Int
         double saved[STATE_SLOTS];
         IntegratorMemory saved_memory = *memory;
         memcpy(saved, x, sizeof saved);
-        if (k > first) f->start_slope = reuse ? inst->s.real + N_STATES : NULL; /* checked at t_k */
-        else if (first > 0) f->start_slope = NULL;
+        if (k > first)
+            f->start_slope = reuse ? inst->s.real + N_STATES : NULL; /* checked at t_k */
+        else if (first > 0)
+            f->start_slope = NULL;
         f->checks++;
         if (integrate_fixed(f, solver, memory, x, t_k, hs, 0, 1, 0) != 1 || !end_state_good(inst, f, t_next, NULL)) {
             memcpy(f->refused, x, sizeof f->refused);
@@ -318,21 +321,21 @@ static Status discard_failed(const Call *call, double t_good, const char *method
     char reason[1100];
     refusal_reason(call->inst, t_good, refused, reason, sizeof reason);
     if (unconverged)
-        return discard_at(call, t_good, "%s with h = %g: Newton's iteration did not converge (%d iterations at most, "
+        return discard_at(call, t_good,
+                          "%s with h = %g: Newton's iteration did not converge (%d iterations at most, "
                           "scaled correction below %g) in the substep after t = %.17g; stopped there (last successful "
-                          "time %.17g): take a smaller h", method, h, NEWTON_MAX_ITERATIONS, NEWTON_TOLERANCE, t_good,
-                          t_good);
-    return discard_at(call, t_good, "%s with h = %g: the state would become non-finite or singular in the substep "
-                      "after t = %.17g%s; stopped there (last successful time %.17g)", method, h, t_good, reason, t_good);
+                          "time %.17g): take a smaller h",
+                          method, h, NEWTON_MAX_ITERATIONS, NEWTON_TOLERANCE, t_good, t_good);
+    return discard_at(call, t_good,
+                      "%s with h = %g: the state would become non-finite or singular in the substep "
+                      "after t = %.17g%s; stopped there (last successful time %.17g)",
+                      method, h, t_good, reason, t_good);
 }
 
 /* ---- The rules, each written once ---- */
 
 /* Whether the method picks its own steps (at most h long) to meet tol. */
-static int adaptive_method(int solver, double tol)
-{
-    return solver == SOLVER_RKF45 || ((solver == SOLVER_GBS || solver == SOLVER_TAYLOR) && tol > 0.0);
-}
+static int adaptive_method(int solver, double tol) { return ADAPTIVE_METHOD(solver, tol); }
 
 /* Whether the Adams-Bashforth history in memory serves substeps of hs: only if it was taken with them. */
 static int history_serves(const IntegratorMemory *memory, double hs)
@@ -358,9 +361,10 @@ static double planned_substeps(double H, double h)
  * includes besides the method's). */
 static Status error_too_much_work(const Call *call, double work, const char *checks)
 {
-    return error_refused(call, "communicationStepSize = %g with %s at h = %g needs %.0f right-hand-side evaluations%s "
-                         "(allowed at most %.0f per call): raise h or shorten the step", call->H,
-                         solver_name(call->solver), call->h, work, checks, MAX_EVALUATIONS_PER_CALL);
+    return error_refused(call,
+                         "communicationStepSize = %g with %s at h = %g needs %.0f right-hand-side evaluations%s "
+                         "(allowed at most %.0f per call): raise h or shorten the step",
+                         call->H, solver_name(call->solver), call->h, work, checks, MAX_EVALUATIONS_PER_CALL);
 }
 
 /* Discard: the method stopped short of its step (out of budget, or an adaptive step underflowed) at `reached`, where
@@ -372,28 +376,34 @@ static Status discard_stopped_short(const Call *call, double reached)
     char reason[1100];
     refusal_reason(call->inst, reached, f->refused_known ? f->refused : NULL, reason, sizeof reason);
     if (f->out_of_budget && !adaptive_method(call->solver, call->tol)) /* a fixed-step method's checks for contacts */
-        return discard_at(call, reached, "%s at h = %g used its %.0f right-hand-side evaluations allowed per call, with "
+        return discard_at(call, reached,
+                          "%s at h = %g used its %.0f right-hand-side evaluations allowed per call, with "
                           "the checks for contacts inside its steps, at t = %.17g; stopped at the last successful time "
-                          "%.17g (take shorter communication steps)", method, call->h, MAX_EVALUATIONS_PER_CALL, reached,
-                          reached);
+                          "%.17g (take shorter communication steps)",
+                          method, call->h, MAX_EVALUATIONS_PER_CALL, reached, reached);
     if (f->out_of_budget)
-        return discard_at(call, reached, "%s with tol = %g used its %.0f right-hand-side evaluations allowed per call at "
+        return discard_at(call, reached,
+                          "%s with tol = %g used its %.0f right-hand-side evaluations allowed per call at "
                           "t = %.17g; stopped at the last successful time %.17g (take shorter communication steps or a "
-                          "larger tol)", method, call->tol, MAX_EVALUATIONS_PER_CALL, reached, reached);
+                          "larger tol)",
+                          method, call->tol, MAX_EVALUATIONS_PER_CALL, reached, reached);
     if (f->unconverged)
-        return discard_at(call, reached, "%s with h = %g: Newton's iteration did not converge (%d iterations at most, "
+        return discard_at(call, reached,
+                          "%s with h = %g: Newton's iteration did not converge (%d iterations at most, "
                           "scaled correction below %g) in a trial step locating an event after t = %.17g; stopped at "
-                          "the last successful time %.17g: take a smaller h", method, call->h, NEWTON_MAX_ITERATIONS,
-                          NEWTON_TOLERANCE, reached, reached);
+                          "the last successful time %.17g: take a smaller h",
+                          method, call->h, NEWTON_MAX_ITERATIONS, NEWTON_TOLERANCE, reached, reached);
     if (call->solver == SOLVER_TAYLOR)
-        return discard_at(call, reached, "taylor of order %d with tol = %g: the step its coefficients allow underflowed "
+        return discard_at(call, reached,
+                          "taylor of order %d with tol = %g: the step its coefficients allow underflowed "
                           "at t = %.17g%s (tol is out of reach at this order in double precision, or the state is "
                           "non-finite or singular there: take a larger tol or a higher taylor_order); stopped at the "
-                          "last successful time %.17g", call->inst->s.integer[INT_taylor_order], call->tol, reached,
-                          reason, reached);
-    return discard_at(call, reached, "%s with tol = %g: the step size underflowed at t = %.17g%s (the state is "
-                      "non-finite, singular or too stiff there); stopped at the last successful time %.17g", method,
-                      call->tol, reached, reason, reached);
+                          "last successful time %.17g",
+                          call->inst->s.integer[INT_taylor_order], call->tol, reached, reason, reached);
+    return discard_at(call, reached,
+                      "%s with tol = %g: the step size underflowed at t = %.17g%s (the state is "
+                      "non-finite, singular or too stiff there); stopped at the last successful time %.17g",
+                      method, call->tol, reached, reason, reached);
 }
 /* The work of a call, into the counters. */
 static void count_work(IntegratorMemory *memory, const RightHandSide *f)
@@ -432,7 +442,7 @@ static double adaptive_pass(RightHandSide *f, int solver, IntegratorMemory *memo
 {
     if (solver == SOLVER_TAYLOR) return integrate_taylor(f, memory, x, t, t_end, tol, check_each);
     if (solver == SOLVER_GBS) return integrate_extrapolation(f, memory, x, t, t_end, h, tol, check_each);
-    return integrate_adaptive(f, memory, x, t, t_end, h, tol, check_each);
+    return integrate_adaptive(f, solver, memory, x, t, t_end, h, tol, check_each);
 }
 #if N_CONSTRAINTS > 0
 #include <float.h>
@@ -543,8 +553,8 @@ static void adams_trial_step(EventStepper *e, const double *x0, double t, double
 
 /* x = the method's step of theta from (t, x0), with the integrator memory `memory` left as it was. An adaptive
  * method that stops short (out of budget, its step underflowed) sets e->short_of. */
-static void trial_step(EventStepper *e, const IntegratorMemory *memory, const double *x0, double t,
-                       double theta, double *x)
+static void trial_step(EventStepper *e, const IntegratorMemory *memory, const double *x0, double t, double theta,
+                       double *x)
 {
     IntegratorMemory scratch = *memory;
     memcpy(x, x0, STATE_SLOTS * sizeof(double));
@@ -607,17 +617,21 @@ static void interpolate(const double *x0, const double *a0, const double *x1, co
 {
     const double s = theta / span, s2 = s * s, s3 = s2 * s, s4 = s3 * s, s5 = s4 * s, h2 = span * span;
     const double b[6] = {1.0 - 10.0 * s3 + 15.0 * s4 - 6.0 * s5, s - 6.0 * s3 + 8.0 * s4 - 3.0 * s5,
-                         0.5 * (s2 - 3.0 * s3 + 3.0 * s4 - s5), 10.0 * s3 - 15.0 * s4 + 6.0 * s5,
-                         -4.0 * s3 + 7.0 * s4 - 3.0 * s5, 0.5 * (s3 - 2.0 * s4 + s5)};
-    const double d[6] = {-30.0 * s2 + 60.0 * s3 - 30.0 * s4, 1.0 - 18.0 * s2 + 32.0 * s3 - 15.0 * s4,
-                         0.5 * (2.0 * s - 9.0 * s2 + 12.0 * s3 - 5.0 * s4), 30.0 * s2 - 60.0 * s3 + 30.0 * s4,
-                         -12.0 * s2 + 28.0 * s3 - 15.0 * s4, 0.5 * (3.0 * s2 - 8.0 * s3 + 5.0 * s4)};
+                         0.5 * (s2 - 3.0 * s3 + 3.0 * s4 - s5),  10.0 * s3 - 15.0 * s4 + 6.0 * s5,
+                         -4.0 * s3 + 7.0 * s4 - 3.0 * s5,        0.5 * (s3 - 2.0 * s4 + s5)};
+    const double d[6] = {-30.0 * s2 + 60.0 * s3 - 30.0 * s4,
+                         1.0 - 18.0 * s2 + 32.0 * s3 - 15.0 * s4,
+                         0.5 * (2.0 * s - 9.0 * s2 + 12.0 * s3 - 5.0 * s4),
+                         30.0 * s2 - 60.0 * s3 + 30.0 * s4,
+                         -12.0 * s2 + 28.0 * s3 - 15.0 * s4,
+                         0.5 * (3.0 * s2 - 8.0 * s3 + 5.0 * s4)};
     int j;
     for (j = 0; j < N_COORDINATES; j++) {
         const double q0 = x0[j], v0 = x0[N_COORDINATES + j], q1 = x1[j], v1 = x1[N_COORDINATES + j];
         x[j] = b[0] * q0 + b[1] * span * v0 + b[2] * h2 * a0[j] + b[3] * q1 + b[4] * span * v1 + b[5] * h2 * a1[j];
-        x[N_COORDINATES + j] = (d[0] * q0 + d[1] * span * v0 + d[2] * h2 * a0[j] + d[3] * q1 + d[4] * span * v1 +
-                                d[5] * h2 * a1[j]) / span;
+        x[N_COORDINATES + j] =
+            (d[0] * q0 + d[1] * span * v0 + d[2] * h2 * a0[j] + d[3] * q1 + d[4] * span * v1 + d[5] * h2 * a1[j]) /
+            span;
     }
 }
 
@@ -793,8 +807,8 @@ static double onto_step_map(EventStepper *e, const IntegratorMemory *memory, dou
  * impacts) by a Newton step or two from there. Leaves the state at the event in x (past it by at most the
  * indicator's rounding) and returns the event's offset from t. Typically costs two evaluations and one or two
  * trial steps. */
-static double locate_event(EventStepper *e, const IntegratorMemory *memory, const double *x0, double t,
-                           double span, const double *z0, const double *x1, double *x)
+static double locate_event(EventStepper *e, const IntegratorMemory *memory, const double *x0, double t, double span,
+                           const double *z0, const double *x1, double *x)
 {
     double a0[N_COORDINATES], a1[N_COORDINATES], z1[N_CONSTRAINTS], first = span;
     int k;
@@ -847,7 +861,8 @@ static double dip_within(EventStepper *e, const IntegratorMemory *memory, const 
             if (!(meet > a && meet < b) || !(ga + ra * (meet - a) < -GAP_ROUNDING)) break;
             /* a fixed-step method's trials stay within the call's bound (an adaptive one's pass checks its own) */
             if (!e->adaptive &&
-                e->f->evaluations + e->f->checks + (uint64_t)evaluations_needed(e->solver, 0, 1.0, e->f) > e->f->budget) {
+                e->f->evaluations + e->f->checks + (uint64_t)evaluations_needed(e->solver, 0, 1.0, e->f) >
+                    e->f->budget) {
                 e->f->out_of_budget = 1;
                 e->short_of = 1;
                 return 0.0;
@@ -967,13 +982,17 @@ static int too_stiff(const EventStepper *e, double t, const double *x, char *mes
     if (!(growth > 2.0)) return 0;
     for (k = 0; k < 60; k++) { /* the largest h omega within 2-fold */
         const double middle = 0.5 * (low + high);
-        if (period_growth(e, middle) > 2.0) high = middle;
-        else low = middle;
+        if (period_growth(e, middle) > 2.0)
+            high = middle;
+        else
+            low = middle;
     }
-    snprintf(message, size, "the compliant contact %s at t = %.17g is too stiff for %s at h = %g: its oscillation from there "
-             "(angular frequency up to %g rad/s at full compression) grows %.3g-fold per period, where h at most %.3g keeps it within "
-             "2-fold (or take an implicit or an adaptive method)", CONSTRAINT_NAMES[contact], t,
-             solver_name(e->solver), e->hs, omega, growth, low / omega);
+    snprintf(message, size,
+             "the compliant contact %s at t = %.17g is too stiff for %s at h = %g: its oscillation from there "
+             "(angular frequency up to %g rad/s at full compression) grows %.3g-fold per period, where h at most %.3g "
+             "keeps it within "
+             "2-fold (or take an implicit or an adaptive method)",
+             CONSTRAINT_NAMES[contact], t, solver_name(e->solver), e->hs, omega, growth, low / omega);
     return 1;
 }
 
@@ -1052,8 +1071,10 @@ static Status discard_dependent(EventCall *ec, double ta)
         back_to_call_start(ec);
         good = ec->call->t;
     }
-    return discard_at(ec->call, good, "the constraints at t = %.17g are dependent (an impact or a contact force has no "
-                      "unique solution); stopped at the last successful time %.17g", ta, good);
+    return discard_at(ec->call, good,
+                      "the constraints at t = %.17g are dependent (an impact or a contact force has no "
+                      "unique solution); stopped at the last successful time %.17g",
+                      ta, good);
 }
 
 /* Phase: whether the call stops after an event it resolved at sub->ta: a method of free motion where a constraint
@@ -1072,20 +1093,24 @@ static int event_refused(EventCall *ec, Substep *sub)
     if (stiffness_refused(ec, sub->ta, s->real) != GO_ON) return STATUS_DISCARD; /* the contact begun */
 #endif
     /* events found again and again where they change nothing: stop rather than spin */
-    sub->stalls = memory->n_events == sub->events_seen && s->active_constraints == sub->active_seen ? sub->stalls + 1 : 0;
+    sub->stalls =
+        memory->n_events == sub->events_seen && s->active_constraints == sub->active_seen ? sub->stalls + 1 : 0;
     sub->events_seen = memory->n_events;
     sub->active_seen = s->active_constraints;
     if (sub->stalls > 2) {
         count_work(memory, call->f);
-        return discard_at(call, sub->ta, "an event at t = %.17g recurs at once after it was handled (the state cannot "
+        return discard_at(call, sub->ta,
+                          "an event at t = %.17g recurs at once after it was handled (the state cannot "
                           "leave the constraint's boundary with %s at h = %g); stopped there (last successful time "
-                          "%.17g)", sub->ta, solver_name(call->solver), ec->e.h, sub->ta);
+                          "%.17g)",
+                          sub->ta, solver_name(call->solver), ec->e.h, sub->ta);
     }
     if (memory->n_events - ec->events_before > MAX_EVENTS_PER_CALL) {
         count_work(memory, call->f);
-        return discard_at(call, sub->ta, "%d events within this step, the most one call handles; stopped at t = %.17g "
-                          "(last successful time %.17g): take a shorter communication step", MAX_EVENTS_PER_CALL,
-                          sub->ta, sub->ta);
+        return discard_at(call, sub->ta,
+                          "%d events within this step, the most one call handles; stopped at t = %.17g "
+                          "(last successful time %.17g): take a shorter communication step",
+                          MAX_EVENTS_PER_CALL, sub->ta, sub->ta);
     }
     return GO_ON;
 }
@@ -1198,8 +1223,9 @@ static int substep_with_events(EventCall *ec, int64_t i, int64_t n, double *reac
     int any, status;
     sub.ta = e->adaptive ? *reached : call->t + (double)i * e->hs;
     /* an adaptive method's substep ends where its one step does, at most h on */
-    sub.tb = e->adaptive ? (sub.ta + 1.001 * e->h >= t_end ? t_end : sub.ta + e->h)
-                         : i + 1 == n ? t_end : call->t + (double)(i + 1) * e->hs;
+    sub.tb = e->adaptive  ? (sub.ta + 1.001 * e->h >= t_end ? t_end : sub.ta + e->h)
+             : i + 1 == n ? t_end
+                          : call->t + (double)(i + 1) * e->hs;
     memcpy(sub.x0, call->inst->s.real, sizeof sub.x0);
     sub.m0 = *memory;
     sub.events_seen = memory->n_events;
@@ -1292,13 +1318,16 @@ static int method_refused(const Call *call)
             return error_refused(call, "out of memory for the Taylor method's %d work series of %d coefficients",
                                  TAYLOR_SERIES + STATE_SLOTS, TAYLOR_SLOTS);
     }
-    if (call->solver == SOLVER_RKF45 && !(call->tol > 0.0))
-        return error_refused(call, "rkf45 needs a tolerance: variable tol = 0 is out of its range (0, 1] for rkf45 "
-                             "(tol = 0 means a fixed step only for taylor and gbs)");
+    if (NEEDS_TOL(call->solver) && !(call->tol > 0.0))
+        return error_refused(call,
+                             "%s needs a tolerance: variable tol = 0 is out of its range (0, 1] for %s (tol = 0 "
+                             "means a fixed step only for %s)",
+                             solver_name(call->solver), solver_name(call->solver), FIXED_STEP_AT_ZERO_TOL);
     if (call->solver == SOLVER_GBS && call->tol > 0.0 && call->tol < GBS_SMALLEST_TOL)
-        return error_refused(call, "gbs with tol = %g: out of reach in double precision (its columns agree to "
-                             "rounding first); allowed for gbs: 0 (fixed step h) or [%g, 1]", call->tol,
-                             GBS_SMALLEST_TOL);
+        return error_refused(call,
+                             "gbs with tol = %g: out of reach in double precision (its columns agree to "
+                             "rounding first); allowed for gbs: 0 (fixed step h) or [%g, 1]",
+                             call->tol, GBS_SMALLEST_TOL);
     return GO_ON;
 }
 
@@ -1431,8 +1460,7 @@ static int block_stands(const Call *call, double hs, int64_t first, int64_t coun
     }
     if (*done == count) {
         f->checks++;
-        if (last ? end_state_good(inst, f, t_block_end, checked) : evaluate_at(inst, t_block_end, x, checked))
-            return 1;
+        if (last ? end_state_good(inst, f, t_block_end, checked) : evaluate_at(inst, t_block_end, x, checked)) return 1;
     }
     f->start_slope = NULL; /* the end check may have overwritten it */
     if (!reporting) { /* the reporting pass checked every substep already: x is the last good one */

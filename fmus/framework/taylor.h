@@ -17,10 +17,7 @@
  * costs about k + 1 multiply-adds per operation of the equations where an evaluation costs one, so
  * p (p + 1) / 2 in all; an over-count for the simple pendulum, whose sine dominates its evaluation, and
  * about twice the five-link chain's cost. */
-static inline uint64_t taylor_charge(int order)
-{
-    return (uint64_t)order * (uint64_t)(order + 1) / 2;
-}
+static inline uint64_t taylor_charge(int order) { return (uint64_t)order * (uint64_t)(order + 1) / 2; }
 
 /* w = a^r, k >= 1: k a_0 w_k = sum_{j=0..k-1} (r (k - j) - j) a_(k-j) w_j */
 static inline double taylor_power(const double *a, double r, const double *w, int k)

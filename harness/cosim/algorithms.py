@@ -12,6 +12,7 @@ from typing import NamedTuple
 
 import numpy as np
 
+from harness.cosim.algorithm_registry import NAMES
 from harness.cosim.structure import Connection
 from harness.cosim.unit import Unit
 from harness.errors import HarnessError
@@ -119,7 +120,6 @@ def _check_units(source: Unit, output: str, target: Unit, input_: str, connectio
 
 class Jacobi:
     """Every unit takes the inputs of the step's start, then all step."""
-    name = "jacobi"
 
     def __init__(self, exchange: Exchange):
         self.exchange = exchange
@@ -140,7 +140,6 @@ class Jacobi:
 
 class GaussSeidel:
     """The units step in the order the system lists them; each takes what those before it reached."""
-    name = "gauss-seidel"
 
     def __init__(self, exchange: Exchange):
         self.exchange = exchange
@@ -158,4 +157,7 @@ class GaussSeidel:
         return DONE
 
 
-ALGORITHMS = {part.name: part for part in (Jacobi, GaussSeidel)}
+# the implementation of each registered algorithm (harness/cosim/algorithm_registry.py)
+ALGORITHMS = {"jacobi": Jacobi, "gauss-seidel": GaussSeidel}
+if tuple(ALGORITHMS) != NAMES:
+    raise ImportError(f"harness.cosim.algorithms implements {tuple(ALGORITHMS)}, the registry names {NAMES}")

@@ -129,12 +129,13 @@ class ContactGuard:
         gap0, rate0, _ = stop.before[k]
         depth = max(-float(watch.unit.y_now[watch.gap]), -gap0, 0.0)
         text = (f"{watch.unit.name}: the macro step of {stop.step:.3g} s from t = {stop.t:.10g} s took the contact "
-                f"{depth:.3g} m deep and created {stop.created:.3g} J, more than {SHARE:.0%} of the energy the scene had "
-                f"in motion ({stop.scale:.3g} J)")
+                f"{depth:.3g} m deep and created {stop.created:.3g} J, more than {SHARE:.0%} of the energy the scene "
+                f"had in motion ({stop.scale:.3g} J)")
         duration = self._duration(watch, stop.scale, abs(rate0) or abs(float(watch.unit.y_now[watch.rate])))
         lasts = f"; the contact lasts about {duration:.2g} s" if duration else ""
         if contact_steps:
-            return (f"{text}{lasts}: more steps per contact would do (--contact-steps {min(4 * contact_steps, 100_000)})"
+            return (f"{text}{lasts}: more steps per contact would do "
+                    f"(--contact-steps {min(4 * contact_steps, 100_000)})"
                     + (f", or macro steps of at most {duration / STEPS_PER_CONTACT:.1g} s with --contact-steps 0"
                        if duration else ""))
         advice = f"a macro step of at most {duration / STEPS_PER_CONTACT:.1g} s (--step), or " if duration else ""

@@ -40,8 +40,6 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-import numpy as np
-
 from harness.cosim.algorithms import DONE, Exchange, Outcome
 from harness.cosim.contact_guard import ContactGuard
 from harness.cosim.controls import ends_interval

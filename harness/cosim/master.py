@@ -29,6 +29,7 @@ from typing import Callable
 
 import numpy as np
 
+from harness.cosim.algorithm_registry import DEFAULT as DEFAULT_ALGORITHM, ENTRY
 from harness.cosim.algorithms import ALGORITHMS, Exchange
 from harness.cosim.contact_guard import ContactGuard
 from harness.cosim.contacts import ENERGY_SMALLEST, ContactSteps, contact_watches
@@ -52,7 +53,7 @@ class MasterOptions:
     stop: float
     step: float
     start: float = 0.0
-    algorithm: str = "gauss-seidel"
+    algorithm: str = DEFAULT_ALGORITHM
     extrapolation: str | None = None  # hold or linear; None: linear unless a receiver cannot take it
     on_discard: str = "stop"  # "stop", or "retry": roll back (FMU states) and halve the step
     max_halvings: int = 10
@@ -286,8 +287,8 @@ class Master:
                 stopped_at, message = grid[rows - 1], self.interval.failure
             elif status >= ERROR:
                 culprit = self.units[culprit_index]
-                raise HarnessError(f"{culprit.name}: an {culprit.instance.prefix} call returned {STATUS_NAMES[status]} near "
-                                   f"t = {grid[rows - 1]:g}: {culprit.instance.last_message()}")
+                raise HarnessError(f"{culprit.name}: an {culprit.instance.prefix} call returned {STATUS_NAMES[status]} "
+                                   f"near t = {grid[rows - 1]:g}: {culprit.instance.last_message()}")
             elif status != OK:
                 culprit = self.units[culprit_index]
                 stopped_at = culprit.instance.last_successful_time() if status == DISCARD else grid[rows - 1]
@@ -334,14 +335,13 @@ class Master:
         """The C loop, for plain fixed-step runs and contact steps over plain macro steps, when it is built."""
         o = self.options
         if o.iterate_tol is not None or o.tolerance is not None or o.on_discard != "stop" or self.bonds is not None \
-                or not self.use_native:
+                or not self.use_native or ENTRY[o.algorithm].code is None:
             return None
         core = load_core()
         if core is None:
             return None
         contacts = self.interval if o.contact_steps else None
-        loop = NativeLoop(core, self.units, o.algorithm == "gauss-seidel", self.exchange.linear, contacts, self.tally,
-                          self.guard)
+        loop = NativeLoop(core, self.units, o.algorithm, self.exchange.linear, contacts, self.tally, self.guard)
         return loop if contacts is None or loop.saves_states else None
 
     def free(self) -> None:

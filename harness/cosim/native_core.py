@@ -6,9 +6,13 @@ import time
 
 import numpy as np
 
-from harness.fmi.native_calls import FmiCalls, load_library
+from harness.cosim.algorithm_registry import ENTRY
 from harness.cosim.unit import InputLine
+from harness.errors import HarnessError
+from harness.fmi.native_calls import FmiCalls, load_library
 from harness.interrupts import held
+
+CORE_REFUSED = -1  # cosim_run's answer to an algorithm id it does not know
 
 _double_p = ctypes.POINTER(ctypes.c_double)
 _uint_p = ctypes.POINTER(ctypes.c_uint)
@@ -16,7 +20,8 @@ _int_p = ctypes.POINTER(ctypes.c_int)
 
 
 class CoreUnit(ctypes.Structure):
-    _fields_ = [("calls", FmiCalls), ("line", ctypes.POINTER(InputLine)), ("n_out", ctypes.c_int), ("n_in", ctypes.c_int),
+    _fields_ = [("calls", FmiCalls), ("line", ctypes.POINTER(InputLine)),
+                ("n_out", ctypes.c_int), ("n_in", ctypes.c_int),
                 ("n_int", ctypes.c_int), ("out_vrs", _uint_p), ("in_vrs", _uint_p), ("int_vrs", _uint_p),
                 ("orders_out", _int_p), ("orders_in", _int_p), ("y_now", _double_p), ("dy_now", _double_p),
                 ("y_next", _double_p), ("dy_next", _double_p), ("u", _double_p), ("du", _double_p),
@@ -162,7 +167,7 @@ class NativeLoop:
 
     CHUNK_SECONDS = 0.1  # calls grow from a few rows to about this long, as the recorder's (harness/fmi/simulation.py)
 
-    def __init__(self, core: ctypes.CDLL, units: list, gauss_seidel: bool, linear: bool, contacts=None, tally=None,
+    def __init__(self, core: ctypes.CDLL, units: list, algorithm: str, linear: bool, contacts=None, tally=None,
                  guard=None):
         from harness.fmi.native_calls import fill_calls
         self.core = core
@@ -193,7 +198,8 @@ class NativeLoop:
             struct.energy_index = -1 if unit.energy_index is None else unit.energy_index
         self.n_units = len(units)
         self.stepped = (ctypes.c_int * len(units))()
-        self.gauss_seidel, self.linear = int(gauss_seidel), int(linear)
+        self.algorithm, self.linear = algorithm, int(linear)
+        self.code = ENTRY[algorithm].code  # the C loop's id for it
         self.contacts = NativeContacts(contacts, units) if contacts is not None else None
         self.guard = NativeGuard(guard, units) if guard is not None and guard.active else None
         self.tally = tally
@@ -216,7 +222,7 @@ class NativeLoop:
             part = np.ascontiguousarray(grid[first:end + 1])
             with held():  # the rows a call computed reach the caller before an interrupt ends the run
                 status = self.core.cosim_run(self.structs, self.n_units, part.ctypes.data_as(_double_p), len(part),
-                                             self.gauss_seidel, self.linear, table[first:].ctypes.data_as(_double_p),
+                                             self.code, self.linear, table[first:].ctypes.data_as(_double_p),
                                              table.shape[1], energy[first:].ctypes.data_as(_double_p), self.stepped,
                                              ctypes.byref(self.contacts.struct) if self.contacts else None,
                                              ctypes.byref(self.guard.struct) if self.guard else None,
@@ -225,6 +231,10 @@ class NativeLoop:
                     self.contacts.hand_back(self.tally)
                 if self.guard:
                     self.guard.hand_back()
+                if status == CORE_REFUSED:
+                    raise HarnessError(f"the C master loop does not know algorithm {self.algorithm!r} "
+                                       f"(id {self.code}): "
+                                       f"harness/cosim/native/cosim_core.c implements the registry's ids")
                 rows = first + rows_done.value
                 if on_row is not None:
                     for row in table[first + (1 if first else 0):rows]:

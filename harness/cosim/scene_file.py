@@ -260,7 +260,8 @@ def load_scene_file(path: Path) -> System:
         raise read.fail("\"connections\"", f"must be a list of pairs, not {_kind(pairs)}")
     for pair in pairs:
         output, input_ = read.pair(pair, "a connection")
-        (source, out_name), (target, in_name) = _split(output, "a connection", read), _split(input_, "a connection", read)
+        (source, out_name), (target, in_name) = (_split(output, "a connection", read),
+                                                 _split(input_, "a connection", read))
         connections.append(Connection(source, out_name, target, in_name))
     bonds = []
     listed = data.get("bonds", [])

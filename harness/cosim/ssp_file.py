@@ -152,7 +152,8 @@ def _refuse_transformations(root: ET.Element, what: str) -> None:
         for child in connection:
             kind = child.tag.rpartition("}")[2]
             if kind in TRANSFORMATIONS:
-                raise HarnessError(f"{what}: connection {connection.get('startElement')}.{connection.get('startConnector')}"
+                raise HarnessError(f"{what}: connection "
+                                   f"{connection.get('startElement')}.{connection.get('startConnector')}"
                                    f" -> {connection.get('endElement')}.{connection.get('endConnector')} has a {kind}, "
                                    "which is not supported")
 

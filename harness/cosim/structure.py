@@ -173,7 +173,8 @@ class System:
         if "pixels" in self.accuracy:
             scale = self.camera.get("scale")
             if not scale:
-                raise HarnessError(f"{self.name}: an accuracy in pixels needs the camera's \"scale\" (pixels per metre)")
+                raise HarnessError(f"{self.name}: an accuracy in pixels needs the camera's \"scale\" "
+                                   "(pixels per metre)")
             return float(self.accuracy["pixels"]) / float(scale)
         return None
 

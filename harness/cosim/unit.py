@@ -17,8 +17,9 @@ from harness.interrupts import held
 class InputLine(ctypes.Structure):
     """cosim_core.c's InputLine: how an FMI 3.0 unit that receives inputs asks for them during its step."""
     _fields_ = [("component", ctypes.c_void_p), ("set_float", ctypes.c_void_p), ("n", ctypes.c_int),
-                ("vrs", ctypes.POINTER(ctypes.c_uint)), ("u", ctypes.POINTER(ctypes.c_double)), ("du", ctypes.POINTER(ctypes.c_double)), ("values", ctypes.POINTER(ctypes.c_double)), ("t0", ctypes.c_double),
-                ("active", ctypes.c_int), ("status", ctypes.c_int)]
+                ("vrs", ctypes.POINTER(ctypes.c_uint)), ("u", ctypes.POINTER(ctypes.c_double)),
+                ("du", ctypes.POINTER(ctypes.c_double)), ("values", ctypes.POINTER(ctypes.c_double)),
+                ("t0", ctypes.c_double), ("active", ctypes.c_int), ("status", ctypes.c_int)]
 
 
 def input_line_answer() -> int | None:

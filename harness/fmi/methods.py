@@ -7,19 +7,63 @@ from dataclasses import dataclass, field
 
 
 @dataclass(frozen=True)
+class Engine:
+    """How the C core (fmus/framework/integrators.c) takes a method's steps. The framework's dispatch (the
+    switches over the methods and the adaptive test) is generated from these: a method of an engine with a
+    `table` needs only its entry below and its coefficients in integrators.c."""
+    what: str
+    # the C name of a method's coefficients ({NAME}: the method's name in capitals): a ButcherTableau or an
+    # AdamsBashforth in integrators.c; None for an engine of its own
+    table: str | None
+    # "h": fixed steps of at most h; "tol": its own steps for tol (> 0); "tol or h": its own steps for tol > 0,
+    # fixed steps of h at tol = 0
+    step_control: str
+
+
+ENGINES = {
+    "explicit": Engine("an explicit Runge-Kutta tableau", "TABLEAU_{NAME}", "h"),
+    "embedded": Engine("a Runge-Kutta tableau with an embedded error estimate", "TABLEAU_{NAME}", "tol"),
+    "implicit": Engine("an implicit Runge-Kutta tableau, solved per step by Newton's method with the exact Jacobian",
+                       "TABLEAU_{NAME}", "h"),
+    "adams": Engine("Adams-Bashforth coefficients (with Adams-Moulton's corrector where given) and a Runge-Kutta "
+                    "starter", "{NAME}", "h"),
+    "stormer_verlet": Engine("Stormer-Verlet on the split a(q) - d v", None, "h"),
+    "taylor": Engine("Taylor series by Taylor arithmetic on the generated equations", None, "tol or h"),
+    "gbs": Engine("Gragg-Bulirsch-Stoer extrapolation of the modified midpoint rule", None, "tol or h"),
+}
+
+
+@dataclass(frozen=True)
 class Method:
     name: str
     order: int
-    fixed_step: bool
     description: str
     symmetric: bool = False  # time-reversible: bounded energy error over long runs
-    implicit: bool = False   # solved per step by Newton's method with the exact Jacobian
     needs_constant_mass: bool = False  # only for objects whose mass matrix is constant
-    adaptive: bool = False   # its step (and order) controlled by tol > 0 alone
+    # the studies sweep its tol: its step (and, for gbs, its order) from tol > 0 alone (taylor's order is its own
+    # setting, so the studies run it by order)
+    adaptive: bool = False
     # built on the free equations' structure (their Taylor series, their split into a(q) - d v): on an object
     # with constraints, only while no rigid constraint acts
     free_motion_only: bool = False
     family: str = field(kw_only=True)  # one of FAMILIES: the charts draw each family in its own panels
+    engine: str = field(kw_only=True)  # one of ENGINES
+
+    @property
+    def fixed_step(self) -> bool:
+        """Fixed steps of h whatever tol is."""
+        return ENGINES[self.engine].step_control == "h"
+
+    @property
+    def implicit(self) -> bool:
+        """Solved per step by Newton's method with the exact Jacobian."""
+        return self.engine == "implicit"
+
+    @property
+    def c_table(self) -> str | None:
+        """The C name of its coefficients in integrators.c, for an engine with tables."""
+        table = ENGINES[self.engine].table
+        return table.format(NAME=self.name.upper()) if table else None
 
 
 # The methods' families, in the order the charts draw them: (key, what a chart calls it)
@@ -42,45 +86,48 @@ GBS_COLUMNS = 8
 GBS_SMALLEST_TOL = 1e-15
 
 METHODS = (
-    Method("euler", 1, True, "explicit Euler, order 1", family="runge-kutta"),
-    Method("midpoint", 2, True, "improved polygon (explicit midpoint), order 2", family="runge-kutta"),
-    Method("heun", 2, True, "Heun, order 2", family="runge-kutta"),
-    Method("rk3", 3, True, "Runge-Kutta 3 (thesis 4.38, corrected)", family="runge-kutta"),
-    Method("rk4", 4, True, "classic Runge-Kutta 4", family="runge-kutta"),
-    Method("rkf45", 4, False, "Runge-Kutta-Fehlberg 4(5) with step-size control on tol", adaptive=True,
-           family="runge-kutta"),
-    Method("nystrom5", 5, True, "Kutta-Nystrom, order 5 (thesis 4.36, corrected)", family="runge-kutta"),
-    Method("ab2", 2, True, "Adams-Bashforth 2-step", family="adams-bashforth"),
-    Method("ab3", 3, True, "Adams-Bashforth 3-step", family="adams-bashforth"),
-    Method("ab4", 4, True, "Adams-Bashforth 4-step", family="adams-bashforth"),
-    Method("ab5", 5, True, "Adams-Bashforth 5-step", family="adams-bashforth"),
-    Method("ab6", 6, True, "Adams-Bashforth 6-step (nystrom5 start)", family="adams-bashforth"),
-    Method("implicit_midpoint", 2, True, "implicit midpoint rule, symmetric, order 2 (Newton per step)",
-           symmetric=True, implicit=True, family="symmetric"),
-    Method("gauss_legendre4", 4, True, "2-stage Gauss-Legendre, symmetric, order 4 (Newton per step)",
-           symmetric=True, implicit=True, family="symmetric"),
-    Method("stormer_verlet", 2, True, "Stormer-Verlet, symmetric, order 2 (objects with a constant mass matrix)",
-           symmetric=True, needs_constant_mass=True, free_motion_only=True, family="symmetric"),
+    Method("euler", 1, "explicit Euler, order 1", family="runge-kutta", engine="explicit"),
+    Method("midpoint", 2, "improved polygon (explicit midpoint), order 2", family="runge-kutta", engine="explicit"),
+    Method("heun", 2, "Heun, order 2", family="runge-kutta", engine="explicit"),
+    Method("rk3", 3, "Runge-Kutta 3 (thesis 4.38, corrected)", family="runge-kutta", engine="explicit"),
+    Method("rk4", 4, "classic Runge-Kutta 4", family="runge-kutta", engine="explicit"),
+    Method("rkf45", 4, "Runge-Kutta-Fehlberg 4(5) with step-size control on tol", adaptive=True,
+           family="runge-kutta", engine="embedded"),
+    Method("nystrom5", 5, "Kutta-Nystrom, order 5 (thesis 4.36, corrected)", family="runge-kutta", engine="explicit"),
+    Method("ab2", 2, "Adams-Bashforth 2-step", family="adams-bashforth", engine="adams"),
+    Method("ab3", 3, "Adams-Bashforth 3-step", family="adams-bashforth", engine="adams"),
+    Method("ab4", 4, "Adams-Bashforth 4-step", family="adams-bashforth", engine="adams"),
+    Method("ab5", 5, "Adams-Bashforth 5-step", family="adams-bashforth", engine="adams"),
+    Method("ab6", 6, "Adams-Bashforth 6-step (nystrom5 start)", family="adams-bashforth", engine="adams"),
+    Method("implicit_midpoint", 2, "implicit midpoint rule, symmetric, order 2 (Newton per step)",
+           symmetric=True, family="symmetric", engine="implicit"),
+    Method("gauss_legendre4", 4, "2-stage Gauss-Legendre, symmetric, order 4 (Newton per step)",
+           symmetric=True, family="symmetric", engine="implicit"),
+    Method("stormer_verlet", 2, "Stormer-Verlet, symmetric, order 2 (objects with a constant mass matrix)",
+           symmetric=True, needs_constant_mass=True, free_motion_only=True, family="symmetric",
+           engine="stormer_verlet"),
     # appended: the items before keep their values
-    Method("abm2", 2, True, "Adams-Bashforth-Moulton 2, predictor-corrector (PECE: ab2, trapezoid)",
-           family="adams-bashforth-moulton"),
-    Method("abm3", 3, True, "Adams-Bashforth-Moulton 3, predictor-corrector (PECE)", family="adams-bashforth-moulton"),
-    Method("abm4", 4, True, "Adams-Bashforth-Moulton 4, predictor-corrector (PECE)", family="adams-bashforth-moulton"),
-    Method("abm5", 5, True, "Adams-Bashforth-Moulton 5, predictor-corrector (PECE, nystrom5 start)",
-           family="adams-bashforth-moulton"),
-    Method("abm6", 6, True, "Adams-Bashforth-Moulton 6, predictor-corrector (PECE, nystrom5 start)",
-           family="adams-bashforth-moulton"),
-    Method("trapezoid", 2, True, "implicit trapezoid rule (thesis 4.9), symmetric, A-stable, order 2 (Newton per step)",
-           symmetric=True, implicit=True, family="symmetric"),
-    Method("taylor", TAYLOR_DEFAULT_ORDER, False,
-           f"Taylor method of order taylor_order ({TAYLOR_ORDERS[0]} to {TAYLOR_ORDERS[1]}), its coefficients by Taylor "
-           "arithmetic on the generated equations; fixed step h with tol = 0, else the step from its last "
+    Method("abm2", 2, "Adams-Bashforth-Moulton 2, predictor-corrector (PECE: ab2, trapezoid)",
+           family="adams-bashforth-moulton", engine="adams"),
+    Method("abm3", 3, "Adams-Bashforth-Moulton 3, predictor-corrector (PECE)", family="adams-bashforth-moulton",
+           engine="adams"),
+    Method("abm4", 4, "Adams-Bashforth-Moulton 4, predictor-corrector (PECE)", family="adams-bashforth-moulton",
+           engine="adams"),
+    Method("abm5", 5, "Adams-Bashforth-Moulton 5, predictor-corrector (PECE, nystrom5 start)",
+           family="adams-bashforth-moulton", engine="adams"),
+    Method("abm6", 6, "Adams-Bashforth-Moulton 6, predictor-corrector (PECE, nystrom5 start)",
+           family="adams-bashforth-moulton", engine="adams"),
+    Method("trapezoid", 2, "implicit trapezoid rule (thesis 4.9), symmetric, A-stable, order 2 (Newton per step)",
+           symmetric=True, family="symmetric", engine="implicit"),
+    Method("taylor", TAYLOR_DEFAULT_ORDER,
+           f"Taylor method of order taylor_order ({TAYLOR_ORDERS[0]} to {TAYLOR_ORDERS[1]}), its coefficients by "
+           "Taylor arithmetic on the generated equations; fixed step h with tol = 0, else the step from its last "
            "coefficients (after Jorba and Zou, the radius of convergence from the last four)", free_motion_only=True,
-           family="series"),
-    Method("gbs", 2 * GBS_COLUMNS, False,
+           family="series", engine="taylor"),
+    Method("gbs", 2 * GBS_COLUMNS,
            f"Gragg-Bulirsch-Stoer extrapolation: the modified midpoint rule with 2, 4, ..., 2 k substeps extrapolated "
            f"in h^2 (order 2 k, k = 2 ... gbs_columns <= {GBS_COLUMNS}); order and step chosen for tol, or column "
-           f"gbs_columns with the fixed step h at tol = 0", adaptive=True, family="series"),
+           f"gbs_columns with the fixed step h at tol = 0", adaptive=True, family="series", engine="gbs"),
 )
 SOLVERS = tuple(m.name for m in METHODS)
 FIXED_STEP = tuple(m.name for m in METHODS if m.fixed_step)

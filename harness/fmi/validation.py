@@ -65,7 +65,8 @@ def _runtime_checks(path: Path) -> list[Check]:
     with FmuInstance(path) as fmu:
         fmu.initialize()
         statuses = [fmu.do_step(i * step, step) for i in range(10)]
-        check("Co-Simulation steps", all(s == OK for s in statuses), f"10 steps of {step:g} s: statuses {set(statuses)}")
+        check("Co-Simulation steps", all(s == OK for s in statuses),
+              f"10 steps of {step:g} s: statuses {set(statuses)}")
         check("outputs finite", *_finite_outputs(fmu))
         check("time exact", fmu.last_successful_time() == 9 * step + step,
               f"after {fmu.prefix}DoStep({9 * step!r}, {step!r}) the FMU's time is {fmu.last_successful_time()!r}")

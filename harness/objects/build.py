@@ -29,7 +29,8 @@ from harness.processes import run_program
 
 PROJECT_ROOT = Path(__file__).resolve().parents[2]
 FRAMEWORK = PROJECT_ROOT / "fmus" / "framework"
-FRAMEWORK_HEADERS = ("fmi2_api.h", "framework.h", "integrators.h", "linear_model.h", "taylor.h", "constraints.h")
+# the version-neutral headers every FMU's sources carry (each version adds its API header: LAYERS)
+CORE_HEADERS = tuple(sorted(path.name for path in FRAMEWORK.glob("*.h") if not path.name.endswith("_api.h")))
 # The flags of the CMake Release build: same code, same numbers.
 C_FLAGS = ("-std=c99", "-O3", "-DNDEBUG", "-fPIC", "-fvisibility=hidden", "-Wall", "-Wextra", "-Wno-unused-parameter")
 
@@ -93,7 +94,8 @@ def derive_fmu(object_file: str | Path, out: str | Path, progress: Callable[[str
             try:
                 target.parent.mkdir(parents=True, exist_ok=True)
             except OSError as error:
-                raise HarnessError(f"--out {out}: cannot create the folder {target.parent} ({error.strerror})") from None
+                raise HarnessError(f"--out {out}: cannot create the folder {target.parent} "
+                                   f"({error.strerror})") from None
             with written(target, binary=True) as sink:  # each FMU appears whole or not at all
                 sink.write(packed[version].read_bytes())
     return DerivedFmu(generated.identifier, targets[2], targets[3])
@@ -109,7 +111,7 @@ def _package(version: int, compiler: list[str], object_file, identifier: str, fo
     for directory in (sources, binaries, fmu / "documentation"):
         directory.mkdir(parents=True)
     compiled = unit_sources(version)
-    for name in (single_unit(version), *(n for n in compiled if n != "physics.c"), layer_header, *FRAMEWORK_HEADERS[1:]):
+    for name in (single_unit(version), *(n for n in compiled if n != "physics.c"), layer_header, *CORE_HEADERS):
         shutil.copy(FRAMEWORK / name, sources / name)
     for name in ("physics.c", "physics.h", "model_description.h"):
         shutil.copy(folder / name, sources / name)

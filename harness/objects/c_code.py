@@ -21,7 +21,8 @@ import sympy as sp
 from harness.fmi.methods import FREE_MOTION_ONLY, GBS_COLUMNS, GBS_SMALLEST_TOL, TAYLOR_ORDERS
 from harness.objects.c_expression import c_expr
 from harness.objects.derivation import Derivation, constraints_beyond_free_motion, total_derivative
-from harness.objects.object_file import ANGLE_LIMIT, FRAMEWORK_PARAMETERS, MAX_EVALUATIONS_PER_CALL, REQUIRE_MARGIN
+from harness.objects.object_file import (ANGLE_LIMIT, FRAMEWORK_PARAMETERS, MAX_EVALUATIONS_PER_CALL, REQUIRE_MARGIN,
+                                         ObjectSpec, Parameter)
 from harness.objects.taylor_code import TaylorUnavailable, contract_trigonometry, loop_over_orders, taylor_code
 
 
@@ -94,7 +95,75 @@ class GeneratedC:
     source: str
 
 
+@dataclass
+class _Generation:
+    """What every part of the C code shares: the derivation, its symbols' C names and the constants hoisted so far."""
+    derivation: Derivation
+    parameters: list[Parameter]  # the object's own: the framework's have fields of their own
+    names: _Names
+    constants: _Constants
+    accelerations: list[sp.Symbol]  # a_j, the accelerations of the outputs' rates
+    state_locals: list[str]  # s_<state> = x[...], for the functions of (t, x)
+
+    @property
+    def spec(self) -> ObjectSpec:
+        return self.derivation.spec
+
+    @property
+    def n(self) -> int:
+        return self.derivation.n
+
+    @property
+    def nf(self) -> int:
+        return len(self.derivation.inputs)
+
+    @property
+    def has_linear(self) -> bool:
+        return self.derivation.linear is not None
+
+    @property
+    def real_locals(self) -> list[str]:
+        """s_<state> = real[VR_<state>], for the functions of the variables."""
+        return [f"    const double s_{c.name} = real[VR_{c.name}];" for c in self.spec.coordinates] + \
+               [f"    const double s_{c.velocity} = real[VR_{c.velocity}];" for c in self.spec.coordinates]
+
+    @property
+    def accelerations_now(self) -> dict[sp.Symbol, sp.Symbol]:
+        """The accelerations der(VELOCITY) of the further outputs as the derivatives dx[n + j]."""
+        return {a: sp.Symbol(f"dx[{self.n + j}]", real=True) for j, a in enumerate(self.spec.accelerations)}
+
+    def prepared(self, expr):
+        """expr in C names, its parameter-only subexpressions hoisted into the constants."""
+        return self.constants.hoist(self.names.to_c(expr))
+
+
 def generate_c(derivation: Derivation) -> GeneratedC:
+    """physics.h and physics.c of a derivation."""
+    # model_prepare computes the constants every other part hoists, so it comes last; the parts before it keep
+    # their order, which numbers the constants.
+    generation = _generation_of(derivation)
+    rhs = _right_hand_side(generation)
+    taylor = _model_taylor(generation, rhs)
+    targets, values = _point_outputs(derivation.spec, derivation.positions, derivation.velocities)
+    outputs = _outputs_body(generation, targets, values)
+    constraint_functions = (_constraint_functions(derivation, generation.prepared, generation.state_locals)
+                            if derivation.spec.constraints else "")
+    # the outputs' rates hold the accelerations a_j, which are the derivatives dx[n + j] from here on
+    generation.names.mapping.update({a: sp.Symbol(f"dx[{derivation.n + j}]", real=True)
+                                     for j, a in enumerate(generation.accelerations)})
+    rates = _rates_body(generation, targets)
+    directional = _directional_body(generation, targets, values)
+    diagonals = [_diagonal_entry(derivation, derivation.spec, generation.names, j) for j in range(derivation.n)]
+    prepare = _prepare_body(generation, rhs, diagonals)
+    state_ok = _state_ok_body(generation, rhs.requirements)
+    explain = _explanation_body(generation, rhs, diagonals)
+    return GeneratedC(_physics_h(generation, rhs, taylor),
+                      _physics_c(generation, constraint_functions, prepare=prepare, state_ok=state_ok, explain=explain,
+                                 outputs=outputs, rates=rates, directional=directional, taylor=taylor.lines))
+
+
+def _generation_of(derivation: Derivation) -> _Generation:
+    """The C names of the derivation's symbols, with no constant hoisted yet."""
     spec = derivation.spec
     n = derivation.n
     names = _Names()
@@ -110,16 +179,31 @@ def generate_c(derivation: Derivation) -> GeneratedC:
     names.mapping[spec.symbols["d"]] = sp.Symbol("c->d", real=True)  # the damping, in an output's expression
     accelerations = [sp.Symbol(f"a_{j}", real=True) for j in range(n)]
     constants = _Constants({names.mapping[spec.symbols[p.name]] for p in parameters})
-
-    def prepared(expr):
-        return constants.hoist(names.to_c(expr))
-
     state_locals = [f"    const double s_{c.name} = x[{j}];" for j, c in enumerate(spec.coordinates)] + \
                    [f"    const double s_{c.velocity} = x[{n + j}];" for j, c in enumerate(spec.coordinates)]
-    has_linear = derivation.linear is not None
-    nf = len(derivation.inputs)
+    return _Generation(derivation, parameters, names, constants, accelerations, state_locals)
 
-    # ---- right-hand side
+
+@dataclass
+class _RightHandSide:
+    """The right-hand side: the body of model_equations and what the other parts take from it."""
+    body: list[str]
+    requirements: list[sp.Expr]  # prepared
+    upper: list[tuple[int, int]]  # the entries of M stored, row by row up to the diagonal
+    mass: list[sp.Expr]  # M at upper, prepared
+    diagonal: bool
+    pivots: list[sp.Expr]  # prepared, checked at run time
+    forcing: list[sp.Expr]  # f as solved (over the diagonal of a diagonal M), not prepared
+    forces: list[sp.Expr]  # Q likewise
+    constant_pivots: list[tuple[int, str]]
+    constant_factor_lines: list[str]
+    factor_constants: list[str]
+
+
+def _right_hand_side(generation: _Generation) -> _RightHandSide:
+    """model_equations' body, dx = (v, a - d v) with M a = f + Q, and the parts of it the other parts reuse."""
+    derivation, spec, n, prepared = generation.derivation, generation.spec, generation.n, generation.prepared
+    constants = generation.constants
     body: list[str] = []
     requirements = [prepared(r) for r in spec.require]
     for k, requirement in enumerate(requirements):
@@ -153,22 +237,13 @@ def generate_c(derivation: Derivation) -> GeneratedC:
     mass_c = dict(zip(upper, reduced[:len(upper)]))
     for j in range(n):
         body.append(f"    double b{j} = {c_expr(reduced[len(upper) + j])};")
-    if nf:
+    if generation.nf:
         forces = _reuse([prepared(e) for e in forces_q], replacements)
         force_lines, force_reduced, _ = _cse_lines(forces, "z", indent="        ")
         body.append("    if (u) {")
         body += force_lines
         body += [f"        b{j} += {c_expr(e)};" for j, e in enumerate(force_reduced) if e != 0]
         body.append("    }")
-    angles = set(spec.q) | {spec.time}
-    # the equations as derived, and with products of sines and cosines contracted, the terms collected by
-    # their dependence on the state
-    contracted = [lambda e: e, lambda e: contract_trigonometry(e, angles, angles | set(spec.v) | set(derivation.inputs))]
-    taylor = _taylor_function(spec, n, nf, diagonal, pivots,
-                              [{key: prepared(variant(derivation.M[key])) for key in upper} for variant in contracted],
-                              [[prepared(variant(e)) for e in forcing_f] for variant in contracted],
-                              [[prepared(variant(e)) for e in forces_q] if nf else [] for variant in contracted],
-                              state_locals)
     if diagonal:
         factor_lines, factor_constants = [f"    const double a{j} = b{j};" for j in range(n)], []
         constant_pivots = [(j, c_expr(m)) for j, m in enumerate(mass_c[(j, j)] for j in range(n))
@@ -181,75 +256,104 @@ def generate_c(derivation: Derivation) -> GeneratedC:
     body += [f"    dx[{n + j}] = a{j} - c->d * s_{c.velocity};" for j, c in enumerate(spec.coordinates)]
     if any("goto singular" in line for line in body):
         body += ["    return;", "singular:", f"    {{ int i; for (i = 0; i < {2 * n}; i++) dx[i] = NAN; }}"]
-    body = _with_locals(state_locals, body)
+    return _RightHandSide(_with_locals(generation.state_locals, body), requirements, upper, mass, diagonal, pivots,
+                          forcing_f, forces_q, constant_pivots, constant_factor_lines, factor_constants)
 
-    # ---- outputs and their exact time derivatives: the same targets, values one derivative apart
-    q, v, t = spec.q, spec.v, spec.time
-    real_locals = [f"    const double s_{c.name} = real[VR_{c.name}];" for c in spec.coordinates] + \
-                  [f"    const double s_{c.velocity} = real[VR_{c.velocity}];" for c in spec.coordinates]
-    targets, values = _point_outputs(spec, derivation.positions, derivation.velocities)
-    outputs_body = _output_function("real", targets, [prepared(e) for e in values + [derivation.T, derivation.U]],
-                                    "&real[VR_E_kin], &real[VR_E_pot], NULL, NULL" if has_linear else None)
-    accelerations_now = {a: sp.Symbol(f"dx[{n + j}]", real=True) for j, a in enumerate(spec.accelerations)}
+
+def _model_taylor(generation: _Generation, rhs: _RightHandSide) -> _TaylorFunction:
+    """model_taylor of the right-hand side, from whichever variant of its equations needs fewer convolutions."""
+    derivation, spec, prepared = generation.derivation, generation.spec, generation.prepared
+    M, nf = derivation.M, generation.nf
+    angles = set(spec.q) | {spec.time}
+    # the equations as derived, and with products of sines and cosines contracted, the terms collected by
+    # their dependence on the state
+    contracted = [lambda e: e,
+                  lambda e: contract_trigonometry(e, angles, angles | set(spec.v) | set(derivation.inputs))]
+    return _taylor_function(spec, generation.n, nf, rhs.diagonal, rhs.pivots,
+                            [{key: prepared(variant(M[key])) for key in rhs.upper} for variant in contracted],
+                            [[prepared(variant(e)) for e in rhs.forcing] for variant in contracted],
+                            [[prepared(variant(e)) for e in rhs.forces] if nf else [] for variant in contracted],
+                            generation.state_locals)
+
+
+def _outputs_body(generation: _Generation, targets: list[str], values: list) -> list[str]:
+    """outputs_of's body: the points' positions and velocities, the energies, the further and constraint outputs."""
+    derivation, spec, prepared = generation.derivation, generation.spec, generation.prepared
+    body = _output_function("real", targets, [prepared(e) for e in values + [derivation.T, derivation.U]],
+                            "&real[VR_E_kin], &real[VR_E_pot], NULL, NULL" if generation.has_linear else None)
     if spec.outputs:
-        outputs_body += _further_outputs("real", [o.name for o in spec.outputs],
-                                         [prepared(o.value.xreplace(accelerations_now)) for o in spec.outputs],
-                                         derivation.inputs)
-    outputs_body = _with_locals(real_locals, outputs_body)
-    constraint_source = ""
+        body += _further_outputs("real", [o.name for o in spec.outputs],
+                                 [prepared(o.value.xreplace(generation.accelerations_now)) for o in spec.outputs],
+                                 derivation.inputs)
+    body = _with_locals(generation.real_locals, body)
     if spec.constraints:
-        outputs_body += _constraint_output_call(derivation.inputs)
-        constraint_source = _constraint_functions(derivation, prepared, state_locals)
-    names.mapping.update({a: sp.Symbol(f"dx[{n + j}]", real=True) for j, a in enumerate(accelerations)})
-    accelerated = [[total_derivative(x, q, v, accelerations, t) for x in velocity] for velocity in derivation.velocities]
+        body += _constraint_output_call(derivation.inputs)
+    return body
+
+
+def _rates_body(generation: _Generation, targets: list[str]) -> list[str]:
+    """model_output_rates' body: the exact time derivative of every output (a_j in it read as dx[n + j])."""
+    derivation, spec, n, prepared = generation.derivation, generation.spec, generation.n, generation.prepared
+    q, v, t, accelerations = spec.q, spec.v, spec.time, generation.accelerations
+    accelerated = [[total_derivative(x, q, v, accelerations, t) for x in velocity]
+                   for velocity in derivation.velocities]
     _, rates = _point_outputs(spec, derivation.velocities, accelerated)
     energy_rates = [total_derivative(e, q, v, accelerations, t) for e in (derivation.T, derivation.U)]
-    rates_body = _output_function("rate", targets, [prepared(e) for e in rates + energy_rates],
-                                  "NULL, NULL, &rate[VR_E_kin], &rate[VR_E_pot]" if has_linear else None)
+    body = _output_function("rate", targets, [prepared(e) for e in rates + energy_rates],
+                            "NULL, NULL, &rate[VR_E_kin], &rate[VR_E_pot]" if generation.has_linear else None)
     if spec.outputs:
         jerk = [sp.Symbol(f"jerk[{n + j}]", real=True) for j in range(n)]
-        input_rates = [sp.Symbol(f"du[{k}]", real=True) for k in range(nf)]
+        input_rates = [sp.Symbol(f"du[{k}]", real=True) for k in range(generation.nf)]
         output_rates = [_output_rate(o.value, spec, accelerations, derivation.inputs, input_rates, jerk)
                         for o in spec.outputs]
         uses_jerk = any(o.value.free_symbols & set(spec.accelerations) for o in spec.outputs)
         if uses_jerk:  # the accelerations' rates: their directional derivative along (v, a, du)
-            rates_body += [f"    double jerk[{2 * n}], scratch[N_REAL];",
-                           f"    model_directional(c, t, real, dx, dx, du, jerk, scratch);"]
-        rates_body += _further_outputs("rate", [o.name for o in spec.outputs],
-                                       [prepared(e.xreplace(accelerations_now)) for e in output_rates], derivation.inputs)
-    rates_body = _with_locals(real_locals, rates_body)
+            body += [f"    double jerk[{2 * n}], scratch[N_REAL];",
+                     "    model_directional(c, t, real, dx, dx, du, jerk, scratch);"]
+        body += _further_outputs("rate", [o.name for o in spec.outputs],
+                                 [prepared(e.xreplace(generation.accelerations_now)) for e in output_rates],
+                                 derivation.inputs)
+    body = _with_locals(generation.real_locals, body)
     if spec.constraints:
-        rates_body += ["    {", *_inputs_from_real(derivation.inputs),
-                       f"        constraint_output_rates(c, t, real, dx, {'u' if nf else 'NULL'}, rate);", "    }"]
+        body += ["    {", *_inputs_from_real(derivation.inputs),
+                 f"        constraint_output_rates(c, t, real, dx, {'u' if generation.nf else 'NULL'}, rate);", "    }"]
+    return body
 
-    directional_body = _with_locals(
-        real_locals + [f"    const double acc{j} = dx[{n + j}] + c->d * s_{c.velocity};"
-                       for j, c in enumerate(spec.coordinates)],
-        _directional_lines(derivation, prepared, targets, values, has_linear,
-                           _further_output_changes(derivation, prepared, accelerations_now)))
 
-    # ---- model_prepare
-    prepare = [f"    c->p_{p.name} = real[VR_{p.name}];" for p in parameters]
+def _directional_body(generation: _Generation, targets: list[str], values: list) -> list[str]:
+    """model_directional's body: the derivatives' and the outputs' change along a seed."""
+    derivation, n, prepared = generation.derivation, generation.n, generation.prepared
+    return _with_locals(
+        generation.real_locals + [f"    const double acc{j} = dx[{n + j}] + c->d * s_{c.velocity};"
+                                  for j, c in enumerate(generation.spec.coordinates)],
+        _directional_lines(derivation, prepared, targets, values, generation.has_linear,
+                           _further_output_changes(derivation, prepared, generation.accelerations_now)))
+
+
+def _prepare_body(generation: _Generation, rhs: _RightHandSide, diagonals: list[tuple[str, str]]) -> list[str]:
+    """model_prepare's body: the parameters, constraint laws, hoisted constants, constant pivots and linear model."""
+    derivation, spec, n, names = generation.derivation, generation.spec, generation.n, generation.names
+    prepare = [f"    c->p_{p.name} = real[VR_{p.name}];" for p in generation.parameters]
     prepare.append("    c->d = real[VR_d];")
     for k, constraint in enumerate(spec.constraints):
         law = f"c->law[{k}]"
-        prepare += [f"    {law}.bilateral = {int(constraint.bilateral)};", f"    {law}.compliant = {int(constraint.compliant)};",
+        prepare += [f"    {law}.bilateral = {int(constraint.bilateral)};",
+                    f"    {law}.compliant = {int(constraint.compliant)};",
                     f"    {law}.restitution = {c_expr(names.to_c(constraint.restitution))};",
                     f"    {law}.stiffness = {c_expr(names.to_c(constraint.stiffness if constraint.compliant else 0))};",
                     f"    {law}.exponent = {constraint.exponent!r};",
                     f"    {law}.damping = {c_expr(names.to_c(constraint.damping))};"]
-    prepare += [f"    {c_expr(symbol)} = {c_expr(value)};" for symbol, value in constants.definitions]
-    prepare += constant_factor_lines
-    diagonals = [_diagonal_entry(derivation, spec, names, j) for j in range(n)]
-    for j, pivot in constant_pivots:
+    prepare += [f"    {c_expr(symbol)} = {c_expr(value)};" for symbol, value in generation.constants.definitions]
+    prepare += rhs.constant_factor_lines
+    for j, pivot in rhs.constant_pivots:
         text, values = diagonals[j]
         prepare += [f"    if (!({pivot} > 0.0)) {{",
                     f'        snprintf(message, size, "the mass matrix d2T/dv2 is not positive definite for these '
-                    f'parameters (pivot {j + 1} of its factorization, of {spec.coordinates[j].velocity}, = %g; {text})", '
-                    f'{pivot}{values});',
+                    f'parameters (pivot {j + 1} of its factorization, of {spec.coordinates[j].velocity}, = %g; '
+                    f'{text})", {pivot}{values});',
                     "        return 1;", "    }"]
-    if has_linear:
-        lin = derivation.linear
+    if generation.has_linear:
+        lin, nf = derivation.linear, generation.nf
         prepare.append("    c->linear = integer[INT_model] == MODEL_LINEAR;")
         prepare.append("    {")
         prepare.append(f"        double M0[{n * n}], K0[{n * n}], B0[{max(1, n * nf)}];")
@@ -264,64 +368,82 @@ def generate_c(derivation: Derivation) -> GeneratedC:
                        "message, size) && c->linear) return 1;")
         prepare.append("    }")
     prepare.append("    return 0;")
+    return prepare
 
-    # ---- state check and explanation
+
+def _state_ok_body(generation: _Generation, requirements: list[sp.Expr]) -> list[str]:
+    """model_state_ok's body: 1 where the state is finite, its angles keep their precision and requirements hold."""
+    n = generation.n
     checks = " && ".join(f"isfinite(x[{i}])" for i in range(2 * n))
     ok_body = [f"    if (!({checks})) return 0;"]
-    angles = [(j, c.name) for j, c in enumerate(spec.coordinates) if c.unit == "rad"]
+    angles = [(j, c.name) for j, c in enumerate(generation.spec.coordinates) if c.unit == "rad"]
     for j, _ in angles:
         ok_body.append(f"    if (!(fabs(x[{j}]) <= {ANGLE_LIMIT!r})) return 0;")
     for requirement in requirements:
         ok_body.append(f"    if (!({_required(requirement)})) return 0;")
     ok_body.append("    return 1;")
-    ok_body = _with_locals(state_locals, ok_body)
+    return _with_locals(generation.state_locals, ok_body)
 
+
+def _explanation_body(generation: _Generation, rhs: _RightHandSide, diagonals: list[tuple[str, str]]) -> list[str]:
+    """model_explain_singularity's body: the message naming the angle, requirement or pivot that is singular."""
+    spec = generation.spec
     explain = []
+    angles = [(j, c.name) for j, c in enumerate(spec.coordinates) if c.unit == "rad"]
     for j, name in angles:
         explain += [f"    if (fabs(x[{j}]) > {ANGLE_LIMIT!r}) {{",
-                    f'        snprintf(message, size, "{name} = %g rad is beyond +-{ANGLE_LIMIT:.10g} rad, where an angle has '
-                    f'no precision left for the motion (one ulp is %g rad there)", x[{j}], '
+                    f'        snprintf(message, size, "{name} = %g rad is beyond +-{ANGLE_LIMIT:.10g} rad, where an '
+                    f'angle has no precision left for the motion (one ulp is %g rad there)", x[{j}], '
                     f'nextafter(fabs(x[{j}]), INFINITY) - fabs(x[{j}]));', "        return 1;", "    }"]
-    for k, (requirement, text) in enumerate(zip(requirements, spec.require)):
+    for k, (requirement, text) in enumerate(zip(rhs.requirements, spec.require)):
         size = _terms_size(requirement)
         terms = " + ".join(f"|{term}|" for term in sp.sympify(text).args) if size is not None else ""
         bound = (f" above %g, {REQUIRE_MARGIN:g} of {_c_string(terms)} (closer to 0 it is the terms' rounding;"
                  if size is not None else " > 0 (")
         bound_value = f", (double)({REQUIRE_MARGIN!r} * ({c_expr(size)}))" if size is not None else ""
         explain += [f"    if (!({_required(requirement)})) {{",
-                    f'        snprintf(message, size, "{_c_string(str(text))} = %g must stay{bound} require[{k}] of the '
-                    f'object file)", (double)({c_expr(requirement)}){bound_value});', "        return 1;", "    }"]
-    explain_mass, explain_reduced, _ = _cse_lines(mass, "w")
+                    f'        snprintf(message, size, "{_c_string(str(text))} = %g must stay{bound} require[{k}] of '
+                    f'the object file)", (double)({c_expr(requirement)}){bound_value});', "        return 1;", "    }"]
+    explain_mass, explain_reduced, _ = _cse_lines(rhs.mass, "w")
     explain += explain_mass
-    explain += _pivot_report(n, dict(zip(upper, explain_reduced)), spec, diagonals)
+    explain += _pivot_report(generation.n, dict(zip(rhs.upper, explain_reduced)), spec, diagonals)
     explain.append("    return 0;")
-    explain = _with_locals(state_locals, explain)
+    return _with_locals(generation.state_locals, explain)
 
-    header = _HEADER.format(
+
+def _physics_h(generation: _Generation, rhs: _RightHandSide, taylor: _TaylorFunction) -> str:
+    """physics.h: the object's constants, ModelConst and the inlined right-hand side."""
+    derivation, spec, has_linear = generation.derivation, generation.spec, generation.has_linear
+    return _HEADER.format(
         taylor_available=1 if taylor.available else 0, taylor_reason=_c_string(taylor.reason),
-        taylor_series=max(1, taylor.series), taylor_max_order=TAYLOR_ORDERS[1], gbs_columns=GBS_COLUMNS, gbs_smallest_tol=GBS_SMALLEST_TOL,
-        identifier=spec.identifier, n=n, nf=nf, has_linear=1 if has_linear else 0,
+        taylor_series=max(1, taylor.series), taylor_max_order=TAYLOR_ORDERS[1], gbs_columns=GBS_COLUMNS,
+        gbs_smallest_tol=GBS_SMALLEST_TOL,
+        identifier=spec.identifier, n=generation.n, nf=generation.nf, has_linear=1 if has_linear else 0,
         split=0 if derivation.split_reason else 1, split_reason=_c_string(derivation.split_reason),
         max_evaluations=MAX_EVALUATIONS_PER_CALL,
-        parameter_fields="".join(f" p_{p.name}," for p in parameters).rstrip(","),
-        n_constants=max(1, len(constants.definitions)),
-        factor_fields="".join(f"    double {name};\n" for name in factor_constants),
+        parameter_fields="".join(f" p_{p.name}," for p in generation.parameters).rstrip(","),
+        n_constants=max(1, len(generation.constants.definitions)),
+        factor_fields="".join(f"    double {name};\n" for name in rhs.factor_constants),
         linear_field="    int linear;\n    LinearModel lin;\n" if has_linear else "",
-        constraint_fields=("    ConstraintLaw law[N_CONSTRAINTS];\n    const int32_t *active; /* the FMU state's active "
-                           "constraints, a bit each */\n") if spec.constraints else "",
+        constraint_fields=("    ConstraintLaw law[N_CONSTRAINTS];\n    const int32_t *active; /* the FMU state's "
+                           "active constraints, a bit each */\n") if spec.constraints else "",
         constraints=_constraint_header(spec),
         equations="model_free_equations" if spec.constraints else "model_equations",
         constrained=_CONSTRAINED_EQUATIONS if spec.constraints else "",
-        derivatives="\n".join(body), file=spec.path.name,
-        selected=("    if (c->linear) {\n        linear_model_derivatives(&c->lin, c->d, x, u, dx);\n        return;\n    }\n"
+        derivatives="\n".join(rhs.body), file=spec.path.name,
+        selected=("    if (c->linear) {\n        linear_model_derivatives(&c->lin, c->d, x, u, dx);\n"
+                  "        return;\n    }\n"
                   if has_linear else "") + "    model_equations(c, t, x, u, dx);")
-    source = _SOURCE.format(
-        identifier=spec.identifier, file=spec.path.name, prepare="\n".join(prepare), state_ok="\n".join(ok_body),
-        explain="\n".join(explain), outputs="\n".join(outputs_body), rates="\n".join(rates_body),
-        directional="\n".join(directional_body), taylor="\n".join(taylor.lines), constraint_functions=constraint_source,
+
+
+def _physics_c(generation: _Generation, constraint_functions: str, **bodies: list[str]) -> str:
+    """physics.c: the bodies of its functions, by their names in _SOURCE, and the constraints' functions."""
+    spec = generation.spec
+    return _SOURCE.format(
+        identifier=spec.identifier, file=spec.path.name, constraint_functions=constraint_functions,
         closed_form=("    if (!c->linear) return 0;\n    linear_model_step(&c->lin, c->d, H, u, x);\n    return 1;"
-                     if has_linear else "    (void)c, (void)H, (void)u, (void)x;\n    return 0;"))
-    return GeneratedC(header, source)
+                     if generation.has_linear else "    (void)c, (void)H, (void)u, (void)x;\n    return 0;"),
+        **{name: "\n".join(lines) for name, lines in bodies.items()})
 
 
 @dataclass
@@ -349,8 +471,9 @@ def _taylor_function(spec, n: int, nf: int, diagonal: bool, pivots: list, mass: 
         code = min((taylor_code(n, mass[variant], diagonal, forcing[variant], forces[variant], variables)
                     for variant in range(len(mass))), key=lambda candidate: candidate.cost)
     except TaylorUnavailable as reason:
-        return _TaylorFunction(False, str(reason), 0, ["    (void)c, (void)t, (void)u0, (void)du, (void)order, (void)x, (void)w;",
-                                                       "    return 0;"])
+        return _TaylorFunction(False, str(reason), 0,
+                               ["    (void)c, (void)t, (void)u0, (void)du, (void)order, (void)x, (void)w;",
+                                "    return 0;"])
     text = "\n".join(code.first + [line for line, _ in code.later] + [f"{p.a} {p.b}" for p in code.pairs])
     inverses = ", ".join(["0.0"] + [repr(1.0 / k) for k in range(1, TAYLOR_ORDERS[1] + 2)])
     lines = ["    const int forces = u0 != NULL;",
@@ -644,15 +767,17 @@ def _pivot_report(n: int, mass: dict[tuple[int, int], sp.Expr], spec, diagonals:
     that vanishes and the parameters and coordinates of its diagonal entry."""
     lines = [f"    double M[{n}][{n}], D[{n}], L[{n}][{n}];", "    int i, j, k;"]
     for (i, j), value in mass.items():
-        lines.append(f"    M[{i}][{j}] = {c_expr(value)};" if i == j else f"    M[{i}][{j}] = M[{j}][{i}] = {c_expr(value)};")
+        lines.append(f"    M[{i}][{j}] = {c_expr(value)};" if i == j
+                     else f"    M[{i}][{j}] = M[{j}][{i}] = {c_expr(value)};")
     lines += [f"    for (j = 0; j < {n}; j++) {{",
               "        D[j] = M[j][j];",
               "        for (k = 0; k < j; k++) D[j] -= L[j][k] * L[j][k] * D[k];",
               "        if (!(D[j] > 0.0)) {"]
     for j, (text, values) in enumerate(diagonals):
         lines += [f"            {'if' if j == 0 else 'else if'} (j == {j})",
-                  '                snprintf(message, size, "the mass matrix d2T/dv2 is not positive definite here (pivot '
-                  f'{j + 1} of its factorization, of {spec.coordinates[j].velocity}, = %g; {text})", D[j]{values});']
+                  '                snprintf(message, size, "the mass matrix d2T/dv2 is not positive definite here '
+                  f'(pivot {j + 1} of its factorization, of {spec.coordinates[j].velocity}, = %g; {text})", '
+                  f'D[j]{values});']
     lines += ["            return 1;", "        }",
               f"        for (i = j + 1; i < {n}; i++) {{",
               "            L[i][j] = M[i][j];",
@@ -661,7 +786,8 @@ def _pivot_report(n: int, mass: dict[tuple[int, int], sp.Expr], spec, diagonals:
     return lines
 
 
-_HEADER = """/* {identifier}: generated from modelDescription/{file} by harness.objects. Do not edit: edit the object file. */
+_HEADER = """/* {identifier}: generated from modelDescription/{file} by harness.objects. \
+Do not edit: edit the object file. */
 #ifndef PHYSICS_H
 #define PHYSICS_H
 
@@ -709,7 +835,8 @@ static inline void model_derivatives(const ModelConst *c, double t, const double
 #endif
 """
 
-_SOURCE = """/* {identifier}: generated from modelDescription/{file} by harness.objects. Do not edit: edit the object file. */
+_SOURCE = """/* {identifier}: generated from modelDescription/{file} by harness.objects. \
+Do not edit: edit the object file. */
 #include <math.h>
 #include <stdio.h>
 #include <string.h>
@@ -859,11 +986,11 @@ def _constraint_functions(derivation: Derivation, prepared, state_locals: list[s
         f"void model_constraints({signature}, double *g, double *G, double *rate, double *gamma)", "{",
         *_with_locals(state_locals, lines + ["    (void)c, (void)t;"]), "}", "",
         "/* The gaps alone (what an event indicator needs between events). */",
-        f"void model_gaps({signature}, double *g)", "{", *_with_locals(state_locals, gap_lines + ["    (void)c, (void)t;"]),
-        "}", "",
+        f"void model_gaps({signature}, double *g)", "{",
+        *_with_locals(state_locals, gap_lines + ["    (void)c, (void)t;"]), "}", "",
         "/* The gaps and their rates g' (whether a contact can open and close again within a step). */",
         f"void model_gap_rates({signature}, double *g, double *rate)", "{",
         *_with_locals(state_locals, rate_lines + ["    (void)c, (void)t;"]), "}", "",
         "/* The mass matrix d2T/dv2 at (t, x), row by row. */",
-        f"void model_mass({signature}, double *M)", "{", *_with_locals(state_locals, mass_lines + ["    (void)c, (void)t, (void)x;"]),
-        "}", ""])
+        f"void model_mass({signature}, double *M)", "{",
+        *_with_locals(state_locals, mass_lines + ["    (void)c, (void)t, (void)x;"]), "}", ""])

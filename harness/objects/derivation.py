@@ -320,7 +320,7 @@ def _check_positive(spec: ObjectSpec, M: sp.Matrix) -> None:
 
 def _linearize(spec: ObjectSpec, M: sp.Matrix, T: sp.Expr, U: sp.Expr, Q: list[sp.Expr],
                inputs: list[sp.Symbol]) -> tuple[LinearModel | None, str]:
-    q, v, t = spec.q, spec.v, spec.time
+    q, v = spec.q, spec.v
     if spec.constraints:
         return None, "the object has constraints (its motion switches at contacts)"
     if spec.rheonomic:

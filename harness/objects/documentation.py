@@ -17,7 +17,7 @@ def equations_html(derivation: Derivation) -> str:
     spec = derivation.spec
     n = derivation.n
     q = ", ".join(c.name for c in spec.coordinates)
-    rows = [f"<h2>Equations</h2>",
+    rows = ["<h2>Equations</h2>",
             f"<p>{html.escape(spec.description)}. Generated from the object file <code>{html.escape(spec.path.name)}"
             f"</code> by Lagrange's equations of the second kind. Generalized coordinates q = ({html.escape(q)}), "
             f"velocities v = ({html.escape(', '.join(c.velocity for c in spec.coordinates))}).</p>",

@@ -36,7 +36,8 @@ def no_progress(stage: str) -> None:
     pass
 
 
-def generate(object_file: str | Path, out: str | Path, progress: Callable[[str], None] = no_progress) -> GeneratedObject:
+def generate(object_file: str | Path, out: str | Path,
+             progress: Callable[[str], None] = no_progress) -> GeneratedObject:
     """`progress` is told each stage as it begins."""
     spec = read_object_file(object_file)
     with time_limit(GENERATION_SECONDS, f"{spec.path}: deriving and generating the equations took over "

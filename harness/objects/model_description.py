@@ -19,7 +19,7 @@ from xml.sax.saxutils import quoteattr
 from harness.fmi.methods import COUNTERS, GBS_COLUMNS, METHODS, SOLVERS, TAYLOR_DEFAULT_ORDER, TAYLOR_ORDERS
 from harness.objects.dependencies import dependencies
 from harness.objects.derivation import Derivation
-from harness.objects.object_file import EVENT_COUNTER, FRAMEWORK_PARAMETERS, ObjectFileError
+from harness.objects.object_file import EVENT_COUNTER, ObjectFileError
 
 # What an importer compiles (SourceFiles): one translation unit per FMI version, which includes the rest.
 SOURCE_FILES = ("fmu_fmi2.c",)
@@ -115,7 +115,8 @@ def variables(derivation: Derivation) -> list[Variable]:
             result.append(Variable(name, "output", "continuous", initial="calculated", unit="m/s" if velocity else "m",
                                    description=f"{what}, {'velocity' if velocity else 'position'} {kind[-1]}"))
     del points
-    result += [Variable("E_kin", "output", "continuous", initial="calculated", unit="J", description="kinetic energy T"),
+    result += [Variable("E_kin", "output", "continuous", initial="calculated", unit="J",
+                        description="kinetic energy T"),
                Variable("E_pot", "output", "continuous", initial="calculated", unit="J",
                         description="potential energy U"),
                Variable("E", "output", "continuous", initial="calculated", unit="J", description="total energy T + U")]
@@ -123,7 +124,8 @@ def variables(derivation: Derivation) -> list[Variable]:
         gap, force = constraint.outputs
         what = constraint.description or f"constraint {constraint.name}"
         result.append(Variable(gap, "output", "continuous", initial="calculated", unit=constraint.unit,
-                               description=f"{what}: its gap {'(kept at 0)' if constraint.bilateral else '(>= 0 apart)'}"))
+                               description=f"{what}: its gap "
+                                           f"{'(kept at 0)' if constraint.bilateral else '(>= 0 apart)'}"))
         law = "its compliant law's force" if constraint.compliant else "its force lambda"
         result.append(Variable(force, "output", "continuous", initial="calculated", unit=constraint.force_unit,
                                description=f"{what}: {law} along the gap's gradient"
@@ -153,8 +155,8 @@ def variables(derivation: Derivation) -> list[Variable]:
                            min=TAYLOR_ORDERS[0], max=TAYLOR_ORDERS[1],
                            description="order of the Taylor method (solver = taylor)"))
     result.append(Variable("gbs_columns", "parameter", "tunable", type="Integer", start=GBS_COLUMNS, min=2,
-                           max=GBS_COLUMNS, description=f"columns k of gbs's extrapolation table: its order 2 k with the "
-                                                        f"fixed step h (tol = 0), its highest order with tol > 0"))
+                           max=GBS_COLUMNS, description="columns k of gbs's extrapolation table: its order 2 k with "
+                                                        "the fixed step h (tol = 0), its highest order with tol > 0"))
     # the object file's further outputs come last, so that every other value reference stays
     result += [Variable(o.name, "output", "continuous", initial="calculated", unit=o.unit, description=o.description)
                for o in spec.outputs]

@@ -66,7 +66,8 @@ def from_fmi2(fmi2_text: str, needs: dict[str, set[str]] | None = None,
         'canSerializeFMUState="true" needsCompletedIntegratorStep="false"',
         f'    providesDirectionalDerivatives="{partial}" providesAdjointDerivatives="{partial}"/>',
         f'  <CoSimulation modelIdentifier="{identifier}" canGetAndSetFMUState="true" canSerializeFMUState="true"',
-        '    canHandleVariableCommunicationStepSize="true" maxOutputDerivativeOrder="1" providesIntermediateUpdate="true"',
+        '    canHandleVariableCommunicationStepSize="true" maxOutputDerivativeOrder="1" '
+        'providesIntermediateUpdate="true"',
         f'    providesDirectionalDerivatives="{partial}" providesAdjointDerivatives="{partial}"/>']
     lines += _copied(root.find("UnitDefinitions"))
     types = root.find("TypeDefinitions")

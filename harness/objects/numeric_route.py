@@ -47,7 +47,8 @@ class NumericLagrangian:
             for axis, name in force.inputs.items():
                 self._forces.append((name, sp.lambdify(arguments, position["xyz".index(axis)], "mpmath")))
 
-    def accelerations(self, values: dict[str, float], t: float = 0.0, active: frozenset[int] = frozenset()) -> np.ndarray:
+    def accelerations(self, values: dict[str, float], t: float = 0.0,
+                      active: frozenset[int] = frozenset()) -> np.ndarray:
         """a for the parameters, states and force inputs in values (missing inputs are 0), with the rigid
         unilateral constraints whose indices are in `active` acting (bilateral ones always act)."""
         a, _ = self._motion(values, t, active)
@@ -76,7 +77,8 @@ class NumericLagrangian:
             p, q, v, t_ = self._numbers(values, t)
             a, _ = self._motion(values, t, active)
             n = self.n
-            G = [mpmath.diff(lambda *w: self._gaps[i](*p, *w[:n], *v, w[n]), q + [t_], [int(k == j) for k in range(n)] + [0])
+            G = [mpmath.diff(lambda *w: self._gaps[i](*p, *w[:n], *v, w[n]), q + [t_],
+                             [int(k == j) for k in range(n)] + [0])
                  for j in range(n)]
             closing = self._along(self._gaps[i], p, q, v, t_, 2) + sum(G[j] * a[j] for j in range(n))
             if closing < -1e-6 and self.forces(values, t, active | {i})[i] > 0:

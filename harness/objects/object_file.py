@@ -35,15 +35,16 @@ FRAMEWORK_PARAMETERS = {
     "d": dict(start=0.0, unit="1/s", min=0.0, description="damping: each generalized acceleration gets -d times "
                                                             "its velocity"),
     "h": dict(start=0.008, unit="s", min=1e-9,
-              description=f"internal step (initial step for rkf45 and gbs); one Co-Simulation step evaluates the right-hand side "
-                          f"at most {MAX_EVALUATIONS_PER_CALL:.0e} times".replace("e+0", "e")),
+              description=f"internal step (initial step for rkf45 and gbs); one Co-Simulation step evaluates the "
+                          f"right-hand side at most {MAX_EVALUATIONS_PER_CALL:.0e} times".replace("e+0", "e")),
     "tol": dict(start=1e-6, unit="1", min=0.0, max=1.0,
                 description="tolerance: rkf45 and gbs keep their error estimates err_i within tol (1 + |y_i|), RMS "
-                            f"norm (gbs: tol >= {GBS_SMALLEST_TOL:g}); taylor keeps its last terms below tol (1 + |y|_inf); "
-                            "taylor and gbs take the fixed step h at tol = 0, which rkf45 refuses"),
+                            f"norm (gbs: tol >= {GBS_SMALLEST_TOL:g}); taylor keeps its last terms below tol "
+                            "(1 + |y|_inf); taylor and gbs take the fixed step h at tol = 0, which rkf45 refuses"),
 }
 EVENT_COUNTER = "n_events"  # the objects with constraints count their events
-RESERVED = {"solver", "model", "taylor_order", "gbs_columns", *COUNTER_NAMES, EVENT_COUNTER, "E_kin", "E_pot", "E", "t", "time"}
+RESERVED = {"solver", "model", "taylor_order", "gbs_columns", *COUNTER_NAMES, EVENT_COUNTER, "E_kin", "E_pot", "E",
+            "t", "time"}
 FUNCTIONS = {name: getattr(sp, name) for name in (
     "sin", "cos", "tan", "asin", "acos", "atan", "atan2", "sinh", "cosh", "tanh", "exp", "log", "sqrt", "Abs")}
 FUNCTIONS["pi"] = sp.pi
@@ -394,8 +395,36 @@ class _Reader:
 def read_object_file(path: str | Path, text: str | None = None) -> ObjectSpec:
     """Reads and checks an object file (text, when given, is its content: path then only names it);
     raises ObjectFileError with a one-line message."""
-    path = Path(path)
-    reader = _Reader(path)
+    # The tables are read in this order, which is the order of their checks: a file with several problems is
+    # told the first.
+    reader = _Reader(Path(path))
+    data = _read_toml(reader, text)
+    identifier, description = _read_identity(reader, data)
+    names = _TakenNames(reader)
+    parameters = _read_parameters(reader, data, names)
+    coordinates = _read_coordinates(reader, data, names)
+    symbols, params, q, v, t = _symbols_of(names, parameters, coordinates)
+    points = _read_points(reader, data, names, symbols, params, params | q | t)
+    T, U = _read_energy(reader, data, symbols, coordinates, points, params, q, v, t)
+    forces = _read_forces(reader, data, names, points)
+    # the force inputs are known names from here on, which only the outputs may use
+    symbols.update({name: sp.Symbol(name, real=True) for force in forces for name in force.inputs.values()})
+    rest = _read_rest(reader, data, coordinates, symbols, params)
+    require = _read_require(reader, data, symbols, params | q | t)
+    constraints = _read_constraints(reader, reader.table(data, "constraints", required=False), names.claim, symbols,
+                                    parameters, params | q | t, q)
+    inputs = {symbols[name] for force in forces for name in force.inputs.values()}
+    outputs = _read_outputs(reader, reader.table(data, "outputs", required=False), names.claim, symbols, coordinates,
+                            params | q | v | t | inputs | {symbols["d"]}, bool(constraints))
+    spec = ObjectSpec(reader.path, identifier, description, parameters, coordinates, T, U, points, forces, rest,
+                      require, constraints, symbols, outputs)
+    _check_object(reader, spec)
+    return spec
+
+
+def _read_toml(reader: _Reader, text: str | None) -> dict:
+    """The file's top-level table (text, when given, is its content), its keys checked."""
+    path = reader.path
     if text is None and path.exists() and not path.is_file():  # a pipe or a device could block for ever
         raise ObjectFileError(f"{path}: is not a regular file")
     try:
@@ -407,35 +436,51 @@ def read_object_file(path: str | Path, text: str | None = None) -> ObjectSpec:
     except tomllib.TOMLDecodeError as error:
         raise ObjectFileError(f"{path}: is not valid TOML ({error})") from None
     reader.known_keys(data, set(FORMAT["file"]), "file")
+    return data
 
+
+def _read_identity(reader: _Reader, data: dict) -> tuple[str, str]:
+    """The object's identifier and description."""
     identifier = reader.string(data, "identifier", "identifier")
     if not IDENTIFIER.match(identifier) or len(identifier) > 60:
         raise reader.fail("identifier", f"{identifier!r} must be a C identifier of at most 60 characters")
     description = reader.string(data, "description", "description", default="")
+    return identifier, description
 
-    taken: dict[str, str] = {}
 
-    def claim(name: str, where: str) -> str:
+class _TakenNames:
+    """The names an object file has given so far, each with the key that gave it: one object has each name once."""
+
+    def __init__(self, reader: _Reader):
+        self.reader = reader
+        self.taken: dict[str, str] = {}  # name -> key, in the order given
+
+    def claim(self, name: str, where: str) -> str:
+        """The name, now taken by the key where."""
+        reader = self.reader
         reader.name(name, where)
         if name in RESERVED:
             raise reader.fail(where, f"{name!r} is a name every object already has")
-        if name in taken:
-            raise reader.fail(where, f"{name!r} is already used by {taken[name]}")
-        taken[name] = where
+        if name in self.taken:
+            raise reader.fail(where, f"{name!r} is already used by {self.taken[name]}")
+        self.taken[name] = where
         return name
 
-    def claimed_entry(section: str, name: str, entry, example: str, allowed: set[str]) -> str:
+    def entry(self, section: str, name: str, entry, example: str, allowed: set[str]) -> str:
+        """The key section.name of a table's entry, its name taken and its keys checked."""
         where = f"{section}.{name}"
-        claim(name, where)
+        self.claim(name, where)
         if not isinstance(entry, dict):
-            raise reader.fail(where, f"must be a table such as {example}")
-        reader.known_keys(entry, allowed, where)
+            raise self.reader.fail(where, f"must be a table such as {example}")
+        self.reader.known_keys(entry, allowed, where)
         return where
 
+
+def _read_parameters(reader: _Reader, data: dict, names: _TakenNames) -> list[Parameter]:
+    """The parameters in file order, then the framework's the file does not restate."""
     parameters: list[Parameter] = []
     for name, entry in reader.table(data, "parameters").items():
-        where = claimed_entry("parameters", name, entry, '{ start = 1.0, unit = "m" }',
-                              set(FORMAT["parameters"]))
+        where = names.entry("parameters", name, entry, '{ start = 1.0, unit = "m" }', set(FORMAT["parameters"]))
         defaults = FRAMEWORK_PARAMETERS.get(name, {})
         start = reader.number(entry, "start", f"{where}.start", defaults.get("start"))
         if start is None:
@@ -447,17 +492,21 @@ def read_object_file(path: str | Path, text: str | None = None) -> ObjectSpec:
         _check_range(reader, where, p.start, p.min, p.max)
         parameters.append(p)
     for name, defaults in FRAMEWORK_PARAMETERS.items():
-        if name not in taken:
-            claim(name, f"parameters.{name}")
+        if name not in names.taken:
+            names.claim(name, f"parameters.{name}")
             parameters.append(Parameter(name, **defaults))
+    return parameters
 
+
+def _read_coordinates(reader: _Reader, data: dict, names: _TakenNames) -> list[Coordinate]:
+    """The generalized coordinates, at least one, each with its velocity."""
     coordinates: list[Coordinate] = []
     for name, entry in reader.table(data, "coordinates").items():
-        where = claimed_entry("coordinates", name, entry, '{ start = 0.5, unit = "rad", velocity = "omega" }',
-                              set(FORMAT["coordinates"]))
+        where = names.entry("coordinates", name, entry, '{ start = 0.5, unit = "rad", velocity = "omega" }',
+                            set(FORMAT["coordinates"]))
         if "velocity" not in entry:
             raise reader.fail(f"{where}.velocity", "missing: every coordinate needs the name of its velocity")
-        velocity = claim(reader.string(entry, "velocity", f"{where}.velocity"), f"{where}.velocity")
+        velocity = names.claim(reader.string(entry, "velocity", f"{where}.velocity"), f"{where}.velocity")
         start = reader.number(entry, "start", f"{where}.start", 0.0)
         coordinates.append(Coordinate(name, start, reader.string(entry, "unit", f"{where}.unit", ""), velocity,
                                       reader.number(entry, "velocity_start", f"{where}.velocity_start", 0.0),
@@ -466,15 +515,24 @@ def read_object_file(path: str | Path, text: str | None = None) -> ObjectSpec:
                                                     "")))
     if not coordinates:
         raise reader.fail("coordinates", "an object needs at least one generalized coordinate")
+    return coordinates
 
-    symbols = {name: sp.Symbol(name, real=True) for name in taken}
+
+def _symbols_of(names: _TakenNames, parameters: list[Parameter],
+                coordinates: list[Coordinate]) -> tuple[dict[str, sp.Symbol], set, set, set, set]:
+    """The symbols of the names taken so far and of t, and the sets (parameters, coordinates, velocities, t)."""
+    symbols = {name: sp.Symbol(name, real=True) for name in names.taken}
     symbols["t"] = sp.Symbol("t", real=True)
-    velocity_keys = {f"velocity of {symbols[c.name]}": symbols[c.velocity] for c in coordinates}
     params = {symbols[p.name] for p in parameters if p.name not in FRAMEWORK_PARAMETERS}
     q = {symbols[c.name] for c in coordinates}
     v = {symbols[c.velocity] for c in coordinates}
     t = {symbols["t"]}
+    return symbols, params, q, v, t
 
+
+def _read_points(reader: _Reader, data: dict, names: _TakenNames, symbols: dict[str, sp.Symbol], params: set,
+                 allowed: set) -> list[Point]:
+    """The named points: positions in the allowed symbols, drawing hints (link, radius) in the parameters."""
     points: list[Point] = []
     for name, entry in reader.table(data, "points", required=False).items():
         where = f"points.{name}"
@@ -485,19 +543,19 @@ def read_object_file(path: str | Path, text: str | None = None) -> ObjectSpec:
         axes = [a for a in AXES if a in entry]
         if axes not in (["x", "y"], ["x", "y", "z"]):
             raise reader.fail(where, "needs x and y expressions (and z for a 3-D point)")
-        position = [reader.expression(entry[a], f"{where}.{a}", symbols, params | q | t) for a in axes]
+        position = [reader.expression(entry[a], f"{where}.{a}", symbols, allowed) for a in axes]
         with_velocity = entry.get("velocity", True)
         if not isinstance(with_velocity, bool):
             raise reader.fail(f"{where}.velocity", "must be true or false")
         kinds = axes + ([f"v_{a}" for a in axes] if with_velocity else [])
-        names = reader.table(entry, "names", required=False)
-        reader.known_keys(names, set(kinds), f"{where}.names")
+        output_names = reader.table(entry, "names", required=False)
+        reader.known_keys(output_names, set(kinds), f"{where}.names")
         outputs = {}
         for kind in kinds:
-            output = names.get(kind, f"{name}_{kind}")
+            output = output_names.get(kind, f"{name}_{kind}")
             if not isinstance(output, str):
                 raise reader.fail(f"{where}.names.{kind}", "must be a string")
-            outputs[kind] = claim(output, f"{where}.names.{kind}")
+            outputs[kind] = names.claim(output, f"{where}.names.{kind}")
         link = None
         if "link" in entry:
             ends = entry["link"]
@@ -510,12 +568,18 @@ def read_object_file(path: str | Path, text: str | None = None) -> ObjectSpec:
         radius = reader.expression(entry["radius"], f"{where}.radius", symbols, params) if "radius" in entry else None
         points.append(Point(name, position, outputs, reader.string(entry, "description", f"{where}.description", ""),
                             with_velocity, link, radius))
+    return points
 
+
+def _read_energy(reader: _Reader, data: dict, symbols: dict[str, sp.Symbol], coordinates: list[Coordinate],
+                 points: list[Point], params: set, q: set, v: set, t: set) -> tuple[sp.Expr, sp.Expr]:
+    """The kinetic and the potential energy T and U, each speed2(point) in T replaced by its value."""
     energy = reader.table(data, "energy")
     reader.known_keys(energy, set(FORMAT["energy"]), "energy")
     for key in ("T", "U"):
         if key not in energy:
             raise reader.fail(f"energy.{key}", "missing")
+    velocity_keys = {f"velocity of {symbols[c.name]}": symbols[c.velocity] for c in coordinates}
     # speed2(point) in T: the squared speed of a named point (m/2*speed2(bob) for a point mass)
     speed2 = sp.Function("speed2")
     point_symbols = {p.name: sp.Symbol(f"point {p.name}") for p in points}
@@ -523,7 +587,11 @@ def read_object_file(path: str | Path, text: str | None = None) -> ObjectSpec:
                           params | q | v | t | set(point_symbols.values()))
     T = _replace_speed2(reader, T, speed2, point_symbols, points, sorted(q, key=str), {**symbols, **velocity_keys})
     U = reader.expression(energy["U"], "energy.U", symbols, params | q | t)
+    return T, U
 
+
+def _read_forces(reader: _Reader, data: dict, names: _TakenNames, points: list[Point]) -> list[Force]:
+    """The force inputs, each acting on a point along its axes."""
     forces: list[Force] = []
     point_names = {p.name: p for p in points}
     for name, entry in reader.table(data, "forces", required=False).items():
@@ -536,43 +604,44 @@ def read_object_file(path: str | Path, text: str | None = None) -> ObjectSpec:
         if point not in point_names:
             raise reader.fail(f"{where}.point", f"{point!r} is not one of the points ({', '.join(point_names)})")
         axes = AXES[:len(point_names[point].position)]
-        names = reader.table(entry, "names", required=False)
-        reader.known_keys(names, set(axes), f"{where}.names")
+        input_names = reader.table(entry, "names", required=False)
+        reader.known_keys(input_names, set(axes), f"{where}.names")
         inputs = {}
         for axis in axes:
-            inputs[axis] = claim(names.get(axis, f"{name}_{axis}"), f"{where}.names.{axis}")
+            inputs[axis] = names.claim(input_names.get(axis, f"{name}_{axis}"), f"{where}.names.{axis}")
         forces.append(Force(name, point, inputs, reader.string(entry, "description", f"{where}.description", "")))
+    return forces
 
-    for force in forces:
-        symbols.update({name: sp.Symbol(name, real=True) for name in force.inputs.values()})
 
+def _read_rest(reader: _Reader, data: dict, coordinates: list[Coordinate], symbols: dict[str, sp.Symbol],
+               params: set) -> dict[str, sp.Expr]:
+    """The linear model's rest state: each coordinate's value in the parameters (0 where not given)."""
     rest_table = reader.table(data, "rest", required=False)
     reader.known_keys(rest_table, {c.name for c in coordinates}, "rest")
-    rest = {c.name: reader.expression(rest_table.get(c.name, 0), f"rest.{c.name}", symbols, params)
+    return {c.name: reader.expression(rest_table.get(c.name, 0), f"rest.{c.name}", symbols, params)
             for c in coordinates}
 
+
+def _read_require(reader: _Reader, data: dict, symbols: dict[str, sp.Symbol], allowed: set) -> list[sp.Expr]:
+    """The expressions that must stay positive, each depending on some symbol."""
     require_list = data.get("require", [])
     if not isinstance(require_list, list):
         raise reader.fail("require", "must be a list of expressions that stay positive")
-    require = [reader.expression(e, f"require[{k}]", symbols, params | q | t) for k, e in enumerate(require_list)]
+    require = [reader.expression(e, f"require[{k}]", symbols, allowed) for k, e in enumerate(require_list)]
     for k, expression in enumerate(require):
         if not expression.free_symbols:  # always true or always false: a mistake, never a condition
             raise reader.fail(f"require[{k}]", f"= {expression} depends on no parameter or coordinate")
+    return require
 
-    constraints = _read_constraints(reader, reader.table(data, "constraints", required=False), claim, symbols,
-                                    parameters, params | q | t, q)
-    inputs = {symbols[name] for force in forces for name in force.inputs.values()}
-    outputs = _read_outputs(reader, reader.table(data, "outputs", required=False), claim, symbols, coordinates,
-                            params | q | v | t | inputs | {symbols["d"]}, bool(constraints))
-    spec = ObjectSpec(path, identifier, description, parameters, coordinates, T, U, points, forces, rest, require,
-                      constraints, symbols, outputs)
-    if not points:
+
+def _check_object(reader: _Reader, spec: ObjectSpec) -> None:
+    """None: raises where the whole object is wrong (no point, or a driven object's outputs with accelerations)."""
+    if not spec.points:
         raise reader.fail("points", "an object needs at least one point (its position is what a scene shows)")
-    for output in outputs:
+    for output in spec.outputs:
         if spec.rheonomic and output.value.free_symbols & set(spec.accelerations):
             raise reader.fail(f"outputs.{output.name}.value", "the accelerations of a driven object (t in its energies "
                                                               "or points) are not offered to outputs")
-    return spec
 
 
 def _read_outputs(reader: _Reader, table: dict, claim, symbols: dict, coordinates: list[Coordinate], allowed: set,
@@ -594,7 +663,8 @@ def _read_outputs(reader: _Reader, table: dict, claim, symbols: dict, coordinate
             if call.func != der:
                 continue
             if len(call.args) != 1 or call.args[0] not in velocities:
-                raise reader.fail(f"{where}.value", f"{call}: der() takes one velocity ({', '.join(velocities.values())})")
+                raise reader.fail(f"{where}.value",
+                                  f"{call}: der() takes one velocity ({', '.join(velocities.values())})")
             if constrained:
                 raise reader.fail(f"{where}.value", f"{call}: an object with constraints offers no accelerations to "
                                                     "its outputs (its constraint forces are outputs already)")
@@ -644,7 +714,8 @@ def _read_constraints(reader: _Reader, table: dict, claim, symbols: dict, parame
                 if p.min is None or p.min < low or (strict and p.min <= low) or \
                         (high is not None and (p.max is None or p.max > high)):
                     raise reader.fail(f"{where}.{key}", f"parameter {value!r} may take values outside {shown}: "
-                                                        f"declare its {'min and max' if high is not None else 'min'} within it")
+                                                        f"declare its {'min and max' if high is not None else 'min'} "
+                                                        "within it")
                 return symbols[value]
             number = reader.number(entry, key, f"{where}.{key}", default) if not isinstance(value, str) else None
             if number is None:

@@ -160,7 +160,8 @@ def numeric_route_agreement(fmu: Path, spec: ObjectSpec, samples: int, seed: int
     if done < samples and not problems:
         problems.append(f"only {done} of {samples} random states were regular")
     passed = not problems and worst < tolerance and worst_energy < 1e-12
-    detail = (f"largest relative deviation of the accelerations{' (constraint forces and gaps)' if spec.constraints else ''} "
+    detail = (f"largest relative deviation of the accelerations"
+              f"{' (constraint forces and gaps)' if spec.constraints else ''} "
               f"{worst:.1e}, of E_kin and E_pot {worst_energy:.1e} "
               f"at {done} random parameters, states, inputs{' and times' if spec.rheonomic else ''}")
     return Proof("equations = numeric route (finite differences of plain T, U)", passed,

@@ -118,8 +118,8 @@ def double_strikes_ball(radius: float = 0.05, angle: float = -0.6, stop: float =
     return {
         "name": "double pendulum strikes a ball",
         "description": f"A double pendulum (links of 1 m, 1 kg each) is let go from {angle:g} rad; its tip, a steel "
-                       f"ball of radius {radius:g} m, strikes a steel ball of 0.5 kg resting on a string of 2 m beside it "
-                       "(a Contact element between them). The contact lasts about a tenth of a millisecond.",
+                       f"ball of radius {radius:g} m, strikes a steel ball of 0.5 kg resting on a string of 2 m "
+                       "beside it (a Contact element between them). The contact lasts about a tenth of a millisecond.",
         "stop": stop, "step": step, "accuracy": {"position": 0.001},
         "camera": {"scale": 150.0, "frame_rate": 25},
         "components": components, "connections": connections, "bonds": bonds}

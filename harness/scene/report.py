@@ -195,7 +195,8 @@ object.chart{width:100%;max-width:1000px}.pass{color:#1a7f37}.fail{color:#c62828
 def write_index(report: Report, out: Path, seconds: float) -> Path:
     parts = [f"<!DOCTYPE html><html><head><meta charset='utf-8'><title>Pendulum FMUs: demo</title>"
              f"<style>{STYLE}</style></head><body><h1>Pendulum FMUs: demo report</h1>",
-             f"<p class='{'pass' if report.passed else 'fail'}'><b>{'All verdicts pass' if report.passed else 'Some verdicts fail'}"
+             f"<p class='{'pass' if report.passed else 'fail'}'>"
+             f"<b>{'All verdicts pass' if report.passed else 'Some verdicts fail'}"
              f"</b> ({seconds:.0f} s)</p><ul>"]
     for s in report.sections:
         parts.append(f"<li class='{'pass' if s.passed else 'fail'}'>{'PASS' if s.passed else 'FAIL'}: "
@@ -223,5 +224,6 @@ def run_demo(out: Path, duration: float | None = None, progress=print) -> tuple[
         section = step()
         section.seconds = time.perf_counter() - began
         report.sections.append(section)
-        progress(f"{'PASS' if section.passed else 'FAIL'}  {section.title}: {section.verdict} ({section.seconds:.0f} s)")
+        progress(f"{'PASS' if section.passed else 'FAIL'}  {section.title}: {section.verdict} "
+                 f"({section.seconds:.0f} s)")
     return report, write_index(report, out, time.perf_counter() - start)

@@ -45,7 +45,8 @@ def pendulum_chain(n: int, spacing: float = 1.0, k: float = 10.0, released: int 
     for i, spring in enumerate(springs):
         components[spring] = {"fmu": "Spring", "start": {
             "k": k, "c": 0.0, "l0": spacing, "a_x": i * spacing, "a_y": -1.0, "b_x": (i + 1) * spacing, "b_y": -1.0}}
-        connections += element_joint(spring, "a", pendulums[i], "F2") + element_joint(spring, "b", pendulums[i + 1], "F")
+        connections += (element_joint(spring, "a", pendulums[i], "F2")
+                        + element_joint(spring, "b", pendulums[i + 1], "F"))
         bonds += bob_bonds(pendulums[i], "F2") + bob_bonds(pendulums[i + 1], "F")
     for i, pendulum in enumerate(pendulums):
         components[pendulum] = {"fmu": "SimplePendulum", "start": {

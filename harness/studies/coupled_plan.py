@@ -7,7 +7,6 @@ Stability is judged on the eigenvalues of the whole scene's equations linearized
 positive real part, which linearizing away from rest can give, counted as zero)."""
 from __future__ import annotations
 
-import math
 from dataclasses import replace
 
 import numpy as np

@@ -16,9 +16,9 @@ The cheapest admitted candidate (right-hand-side evaluations, or closed-form eva
 scene) is run against a tight reference with an error estimate below a hundredth of the tolerance:
 for the thesis pendulums `reference.tight_reference` (exact, or long double over the hand-coded
 equations), for every other object the FMU's own nystrom5 at a step where halving it changes the
-visible points by less than that (`harness.studies.references`). That is the verified error. Should it exceed the tolerance, the
-next cheapest candidate is verified instead. The visible points are the scene's traces, by default
-the thesis pendulums' outer mass or an object's last point.
+visible points by less than that (`harness.studies.references`). That is the verified error. Should it
+exceed the tolerance, the next cheapest candidate is verified instead. The visible points are the
+scene's traces, by default the thesis pendulums' outer mass or an object's last point.
 
 Objects joined by connections are planned together: one method and internal step for all objects
 and a communication step H (Gauss-Seidel, linear extrapolation), predicted by doubling H and h
@@ -146,7 +146,8 @@ def _parting(runner: ObjectRunner, twin: ObjectRunner, frame: float, tolerance: 
 
 
 def _plausible_plan(component: Component, kind: str, runner: ObjectRunner, twin: ObjectRunner, frame: float,
-                    tolerance: float, pixel: float, reference: np.ndarray, parting: Parting, stable) -> ObjectPlan | None:
+                    tolerance: float, pixel: float, reference: np.ndarray, parting: Parting,
+                    stable) -> ObjectPlan | None:
     """The cheapest setting that keeps the energy within one pixel of the centre of mass's height, is
     stable over the scene and parts from its twin like the reference does (see harness.studies.chaos);
     None when the object's energy is not conserved or no setting qualifies."""

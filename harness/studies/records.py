@@ -21,7 +21,8 @@ def write_records(records: list, path: Path, columns: list[str]) -> None:
         writer = csv.DictWriter(handle, fieldnames=columns, extrasaction="ignore")
         writer.writeheader()
         for record in records:
-            writer.writerow({k: ("" if isinstance(v, float) and math.isnan(v) else v) for k, v in asdict(record).items()})
+            writer.writerow({k: ("" if isinstance(v, float) and math.isnan(v) else v)
+                             for k, v in asdict(record).items()})
 
 
 def read_records(path: Path, kind: type[Record]) -> list[Record]:

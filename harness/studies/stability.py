@@ -150,8 +150,8 @@ def multistep_weights(table: dict, z) -> np.ndarray:
 
 def growth(table: dict, z: complex) -> float:
     """|R(z)| for a Runge-Kutta method (explicit or implicit), the spectral radius of the k-step
-    recursion for Adams-Bashforth and Adams-Bashforth-Moulton (PECE), Stormer-Verlet's growth on an underdamped oscillator with roots
-    z and conj(z) (`table`: one entry of method_tables())."""
+    recursion for Adams-Bashforth and Adams-Bashforth-Moulton (PECE), Stormer-Verlet's growth on an
+    underdamped oscillator with roots z and conj(z) (`table`: one entry of method_tables())."""
     if table.get("partitioned"):
         return pair_growth(z, z.conjugate() if z.imag else z)
     if table.get("taylor"):

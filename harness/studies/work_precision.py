@@ -10,10 +10,10 @@ run over the hand-coded equations with a step-halving error estimate for the oth
 are scaled to the object's default step (Kapitza's pendulum, h = 1e-4 s, gets 64 times finer ones).
 The scipy peers integrate the hand-coded equations (thesis pendulums) or the SymPy derivation's
 (`harness.objects.motion`); an object with constraints has fmpy's CVode as its peer (Model Exchange,
-the impacts as events) and its errors run through every impact. Cost is counted as evaluations (the FMU's `n_rhs`, scipy's `nfev`; the
-implicit methods' Jacobians apart, as `jacobian_columns`, one directional derivative per state for
-each, and compared at one right-hand side each: `evaluations` is the sum) and as seconds (median of
-repeats, the instance loaded once and reset between repeats).
+the impacts as events) and its errors run through every impact. Cost is counted as evaluations (the
+FMU's `n_rhs`, scipy's `nfev`; the implicit methods' Jacobians apart, as `jacobian_columns`, one
+directional derivative per state for each, and compared at one right-hand side each: `evaluations`
+is the sum) and as seconds (median of repeats, the instance loaded once and reset between repeats).
 """
 from __future__ import annotations
 
@@ -270,8 +270,8 @@ def _cvode_point(task: Task, reference: TracedReference) -> Point:
     result = result[rows_on_grid(result["time"], communication_grid(0.0, STOP, STEP))]  # not the events' rows
     positions = np.column_stack([result[n] for n in columns])
     return Point(task.object, task.method, task.h, task.tol, position_error(positions, reference),
-                 int(result["n_rhs"][-1]), seconds, reference.estimated_error, event_error=_event_error(times, reference),
-                 reference_event_error=reference.estimated_event_error)
+                 int(result["n_rhs"][-1]), seconds, reference.estimated_error,
+                 event_error=_event_error(times, reference), reference_event_error=reference.estimated_event_error)
 
 
 def compute(job: tuple[Task, TracedReference]) -> Point:

@@ -15,7 +15,7 @@ from fmpy.fmi2 import fmi2EventInfo
 from harness.fmi.fmu_instance import FmuInstance
 
 path, unzipdir, kind, *states = sys.argv[1:]
-D, I, P = ctypes.c_double, ctypes.c_int, ctypes.c_void_p
+D, Int, P = ctypes.c_double, ctypes.c_int, ctypes.c_void_p
 
 
 def prepare(state: str) -> FmuInstance:
@@ -48,7 +48,7 @@ def calls(fmu: FmuInstance) -> dict:
     nx = md.numberOfContinuousStates
     nz = md.numberOfEventIndicators
     vr_out, vr_in = (ctypes.c_uint * 1)(real_out), (ctypes.c_uint * 1)(real_in)
-    values, order, states = (D * 1)(0.0), (I * 1)(1), (D * max(nx, 1))()
+    values, order, states = (D * 1)(0.0), (Int * 1)(1), (D * max(nx, 1))()
     fmu.call("fmi2GetContinuousStates", states, nx)  # fills the buffer where allowed, harmless elsewhere
     state = P()
     fmu.call("fmi2GetFMUstate", ctypes.byref(state))  # allowed in every state reached here
@@ -56,7 +56,7 @@ def calls(fmu: FmuInstance) -> dict:
     fmu.call("fmi2SerializedFMUstateSize", state, ctypes.byref(size))
     data = ctypes.create_string_buffer(max(size.value, 1))
     fmu.call("fmi2SerializeFMUstate", state, data, size)
-    flag1, flag2, real, status = I(), I(), D(), I()
+    flag1, flag2, real, status = Int(), Int(), D(), Int()
     return {
         "fmi2SetDebugLogging": lambda: fmu.call("fmi2SetDebugLogging", 0, 0, None),
         "fmi2SetupExperiment": lambda: fmu.call("fmi2SetupExperiment", 0, D(0.0), D(0.0), 0, D(0.0)),
@@ -94,7 +94,8 @@ def calls(fmu: FmuInstance) -> dict:
                                                               (D * max(nx, 1))(), nx),
         "fmi2SetRealInputDerivatives": lambda: fmu.call("fmi2SetRealInputDerivatives", vr_in, 1, order, (D * 1)(0.0)),
         "fmi2GetRealOutputDerivatives": lambda: fmu.call("fmi2GetRealOutputDerivatives", vr_out, 1, order, values),
-        "fmi2DoStep": lambda: fmu.call("fmi2DoStep", D(fmu.last_successful_time() if kind == "CS" else 0.0), D(0.01), 1),
+        "fmi2DoStep": lambda: fmu.call("fmi2DoStep", D(fmu.last_successful_time() if kind == "CS" else 0.0),
+                                       D(0.01), 1),
         "fmi2CancelStep": lambda: fmu.call("fmi2CancelStep"),
         "fmi2GetStatus": lambda: fmu.call("fmi2GetStatus", 0, ctypes.byref(status)),
         "fmi2GetRealStatus": lambda: fmu.call("fmi2GetRealStatus", 2, ctypes.byref(real)),

@@ -71,7 +71,8 @@ def write_spec(system: System, step: float, steps: int, recorded: list[tuple[str
         if integers:
             codes = [{i.name: i.value for i in var.declaredType.items}[value] if isinstance(value, str) else value
                      for var, value in integers]
-            spec.add(f"uint start_int_vr_{c.name}[{len(integers)}] = {uint_list(v.valueReference for v, _ in integers)};")
+            spec.add(f"uint start_int_vr_{c.name}[{len(integers)}] = "
+                     f"{uint_list(v.valueReference for v, _ in integers)};")
             spec.add(f"int start_int_{c.name}[{len(integers)}] = {uint_list(codes)};")
             spec.call(f"{c.name}.setInteger(start_int_vr_{c.name}, {len(integers)}, start_int_{c.name})")
         spec.call(f"{c.name}.enterInitializationMode()")

@@ -21,8 +21,10 @@ int model_prepare(const double *real, const int32_t *integer, ModelConst *c, cha
     (void)integer;
     /* Two points never overlap: the gap |b - a| cannot become negative, and the contact would never act */
     if (!(real[VR_R_a] + real[VR_R_b] > 0.0)) {
-        snprintf(message, size, "the radii R_a = %g and R_b = %g make the bodies points, which never touch (allowed: "
-                 "R_a + R_b > 0)", real[VR_R_a], real[VR_R_b]);
+        snprintf(message, size,
+                 "the radii R_a = %g and R_b = %g make the bodies points, which never touch (allowed: "
+                 "R_a + R_b > 0)",
+                 real[VR_R_a], real[VR_R_b]);
         return 1;
     }
     c->k = real[VR_k];
@@ -52,10 +54,7 @@ static Geometry geometry(const double *real)
     return g;
 }
 
-static double dot3(const double *p, const double *q)
-{
-    return p[0] * q[0] + p[1] * q[1] + p[2] * q[2];
-}
+static double dot3(const double *p, const double *q) { return p[0] * q[0] + p[1] * q[1] + p[2] * q[2]; }
 
 /* The force's magnitude F >= 0 for an overlap delta and its rate, with dF/d(delta) and dF/d(rate) where they
  * are asked for. */
@@ -100,8 +99,7 @@ int model_outputs(const ModelConst *c, double t, const double *dx, double *real)
 
 /* The change of the outputs at the geometry `at` along a change dp of b - a and dw of v_b - v_a: the time rates for
  * (dp, dw) = (v_b - v_a, the velocities' slopes), a directional derivative for a seed. */
-static void output_change(const ModelConst *c, const Geometry *at, const double *dp, const double *dw,
-                          double *change)
+static void output_change(const ModelConst *c, const Geometry *at, const double *dp, const double *dw, double *change)
 {
     const Geometry g = *at;
     double e[3], de[3], dr, rate, drate, magnitude, by_delta, by_rate, dmagnitude;

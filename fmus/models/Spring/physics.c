@@ -86,8 +86,8 @@ void model_directional(const ModelConst *c, double t, const double *real, const 
                        const double *seed_u, double *ddx, double *change)
 {
     (void)t, (void)dx, (void)seed_x, (void)ddx;
-    output_change(c, real, seed_u[IN_BX] - seed_u[IN_AX], seed_u[IN_BY] - seed_u[IN_AY], seed_u[IN_BVX] - seed_u[IN_AVX],
-                  seed_u[IN_BVY] - seed_u[IN_AVY], change);
+    output_change(c, real, seed_u[IN_BX] - seed_u[IN_AX], seed_u[IN_BY] - seed_u[IN_AY],
+                  seed_u[IN_BVX] - seed_u[IN_AVX], seed_u[IN_BVY] - seed_u[IN_AVY], change);
 }
 
 void model_advance_inputs(double *real, const double *du, double H)

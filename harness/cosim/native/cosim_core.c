@@ -17,11 +17,11 @@ typedef struct {
     void *component, *set_float; /* the instance and its fmi3SetFloat64 */
     int n;
     const unsigned *vrs;
-    const double *u, *du;        /* the inputs at the step's start t0, and their slopes */
-    double *values;              /* the n values set */
+    const double *u, *du; /* the inputs at the step's start t0, and their slopes */
+    double *values; /* the n values set */
     double t0;
-    int active;                  /* 0: inputs held (nothing is set) */
-    int status;                  /* the worst status a set returned in the step */
+    int active; /* 0: inputs held (nothing is set) */
+    int status; /* the worst status a set returned in the step */
 } InputLine;
 
 void cosim_answer_inputs(void *environment, double t, bool set_requested, bool get_allowed, bool step_finished,
@@ -39,15 +39,15 @@ void cosim_answer_inputs(void *environment, double t, bool set_requested, bool g
 
 typedef struct {
     FmiCalls calls;
-    InputLine *line;         /* FMI 3.0 units that receive inputs: how they ask for them; else NULL */
+    InputLine *line; /* FMI 3.0 units that receive inputs: how they ask for them; else NULL */
     int n_out, n_in, n_int;
     const unsigned *out_vrs, *in_vrs, *int_vrs;
     const int *orders_out, *orders_in;
     double *y_now, *dy_now, *y_next, *dy_next, *u, *du;
-    void *ints;              /* n_int integers of calls.integer_kind */
-    const int *source_unit;  /* per input: index of the unit that feeds it */
+    void *ints; /* n_int integers of calls.integer_kind */
+    const int *source_unit; /* per input: index of the unit that feeds it */
     const int *source_index; /* per input: index of that unit's output */
-    int energy_index;        /* output holding the unit's energy, -1 for none */
+    int energy_index; /* output holding the unit's energy, -1 for none */
 } CoreUnit;
 
 static double integer_value(const CoreUnit *unit, int i)
@@ -61,7 +61,12 @@ static double integer_value(const CoreUnit *unit, int i)
 
 static const double PI = 3.14159265358979323846; /* math.pi, as the Python loop divides by it */
 
-enum { CORE_OK = FMI_OK, CORE_DISCARD = FMI_DISCARD, CORE_ERROR = FMI_ERROR };
+enum { CORE_OK = STATUS_OK, CORE_DISCARD = STATUS_DISCARD, CORE_ERROR = STATUS_ERROR };
+/* cosim_run's answer to arguments it refuses (an algorithm it does not know), beside the FMI codes it passes on */
+enum { CORE_REFUSED = -1 };
+/* The algorithms, by the ids of their registry (harness/cosim/algorithm_registry.py; a test checks that they
+ * agree). */
+enum { ALGORITHM_JACOBI = 1, ALGORITHM_GAUSS_SEIDEL = 2 };
 
 static int feed(CoreUnit *units, int k, double H, int linear, const int *stepped)
 {
@@ -127,11 +132,11 @@ static int record(CoreUnit *units, int n_units, double t, double *row, double *e
  * rounding, stops the run. Python fills the settings and composes the message from what is left here. */
 typedef struct {
     int n_kinetic, n_watches;
-    const int *kinetic_unit, *kinetic_index;                     /* the units' E_kin outputs */
+    const int *kinetic_unit, *kinetic_index; /* the units' E_kin outputs */
     const int *watch_unit, *watch_gap, *watch_rate, *watch_stored; /* per contact; watch_stored -1: no E_pot */
     double share, floor_share;
-    double low, scale, magnitude;  /* carried from one call to the next */
-    double *before;                /* 3 per contact: gap, rate, stored energy at the step's start */
+    double low, scale, magnitude; /* carried from one call to the next */
+    double *before; /* 3 per contact: gap, rate, stored energy at the step's start */
     int failed;
     double failed_at, failed_step, created, failed_scale;
     double entry_low, entry_scale, entry_magnitude, *entry_before; /* where the units entered a contact */
@@ -178,11 +183,12 @@ static int guard_check(EnergyGuard *g, const CoreUnit *units, int n_units, doubl
     return 1;
 }
 
-/* One macro step [t, t + H] of every unit (Jacobi or Gauss-Seidel); the outputs read become those at
- * the start of the next step. */
-static int macro_step(CoreUnit *units, int n_units, double t, double H, int gauss_seidel, int linear, int *stepped,
+/* One macro step [t, t + H] of every unit (by `algorithm`: Jacobi or Gauss-Seidel); the outputs read become those
+ * at the start of the next step. */
+static int macro_step(CoreUnit *units, int n_units, double t, double H, int algorithm, int linear, int *stepped,
                       int *culprit)
 {
+    const int gauss_seidel = algorithm == ALGORITHM_GAUSS_SEIDEL;
     int k, i, status;
     for (k = 0; k < n_units; k++) stepped[k] = 0;
     if (!gauss_seidel) {
@@ -217,30 +223,30 @@ static int macro_step(CoreUnit *units, int n_units, double t, double H, int gaus
  * the tallies and the state. */
 typedef struct {
     int n_watches;
-    const int *watch_unit, *watch_gap, *watch_rate;  /* per watch: the unit and its outputs gap, gap_rate */
+    const int *watch_unit, *watch_gap, *watch_rate; /* per watch: the unit and its outputs gap, gap_rate */
     int per_contact, max_landings;
     double largest, growth, landed_share, smallest_share;
-    double contact_step, last_step, size;  /* carried from one call to the next */
-    double *last_rates;              /* per watch; valid once have_rates */
+    double contact_step, last_step, size; /* carried from one call to the next */
+    double *last_rates; /* per watch; valid once have_rates */
     int have_rates;
     long macro_steps, retries, landings;
-    double *landed;                  /* the ends of the steps planned onto an onset */
+    double *landed; /* the ends of the steps planned onto an onset */
     long landed_capacity, n_landed;
-    int failed;                      /* 1: the steps fell below the smallest at failed_at; 2: the contact entered
+    int failed; /* 1: the steps fell below the smallest at failed_at; 2: the contact entered
                                         at failed_at stayed shorter than its first steps (contacts.py's too_short) */
     double failed_at;
-    double *scratch;                 /* 3 n_watches: gap, rate and its slope per watch */
-    void **states;                   /* n_units */
-    double *saved;                   /* 2 x every unit's n_out: y_now and dy_now at the saved state */
+    double *scratch; /* 3 n_watches: gap, rate and its slope per watch */
+    void **states; /* n_units */
+    double *saved; /* 2 x every unit's n_out: y_now and dy_now at the saved state */
     /* where the units entered a contact, kept while its first steps are blind (contacts.py's Entry) */
     double swing, redo;
     int blind, have_entry, entry_redos, entry_have_rates;
     double entry_t, entry_contact_step, entry_size, entry_last_step;
     long entry_macro_steps, entry_n_landed;
-    double *entry_rates;             /* n_watches */
-    void **entry_states;             /* n_units */
-    double *entry_saved;             /* as saved */
-    double rounding;                 /* a gap above minus this is no contact (contacts.py's ROUNDING) */
+    double *entry_rates; /* n_watches */
+    void **entry_states; /* n_units */
+    double *entry_saved; /* as saved */
+    double rounding; /* a gap above minus this is no contact (contacts.py's ROUNDING) */
 } ContactControl;
 
 static void contact_values(const ContactControl *c, const CoreUnit *units, int linear)
@@ -250,8 +256,10 @@ static void contact_values(const ContactControl *c, const CoreUnit *units, int l
         const CoreUnit *unit = &units[c->watch_unit[w]];
         const double rate = unit->y_now[c->watch_rate[w]];
         double slope;
-        if (linear) slope = unit->dy_now[c->watch_rate[w]];
-        else slope = c->have_rates && c->last_step > 0 ? (rate - c->last_rates[w]) / c->last_step : 0.0;
+        if (linear)
+            slope = unit->dy_now[c->watch_rate[w]];
+        else
+            slope = c->have_rates && c->last_step > 0 ? (rate - c->last_rates[w]) / c->last_step : 0.0;
         c->scratch[3 * w] = unit->y_now[c->watch_gap[w]] + c->rounding;
         c->scratch[3 * w + 1] = rate;
         c->scratch[3 * w + 2] = slope;
@@ -288,11 +296,13 @@ static double contact_plan(ContactControl *c, double room, int *touching, int *l
         c->blind = 0;
     }
     if (crossing) {
-        if (onset <= c->contact_step * c->landed_share) step = fmin(step, c->contact_step);
+        if (onset <= c->contact_step * c->landed_share)
+            step = fmin(step, c->contact_step);
         else if (onset <= fmin(step, c->contact_step)) {
             step = onset;
             *landing = 1;
-        } else if (onset < 2 * step) step = onset / 2;
+        } else if (onset < 2 * step)
+            step = onset / 2;
     }
     *wanted = step;
     return fmin(step, room);
@@ -451,7 +461,7 @@ static int enter_again(ContactControl *c, EnergyGuard *guard, CoreUnit *units, i
 /* A step that began apart, rolled back and redone half way to the onset where it overshot one; where it enters a
  * contact, its start is kept as the contact's entry */
 static int landed_step(ContactControl *c, EnergyGuard *guard, CoreUnit *units, int n_units, double t, double *step,
-                       int *last, int *landing, int gauss_seidel, int linear, int *stepped, int *culprit)
+                       int *last, int *landing, int algorithm, int linear, int *stepped, int *culprit)
 {
     const double contact_step = c->contact_step, size = c->size, last_step = c->last_step;
     const int have_rates = c->have_rates;
@@ -461,7 +471,7 @@ static int landed_step(ContactControl *c, EnergyGuard *guard, CoreUnit *units, i
     for (attempt = 0; attempt <= c->max_landings; attempt++) {
         double missed = 0.0;
         const double shortest = c->contact_step * c->landed_share;
-        status = macro_step(units, n_units, t, *step, gauss_seidel, linear, stepped, culprit);
+        status = macro_step(units, n_units, t, *step, algorithm, linear, stepped, culprit);
         if (status != CORE_OK) break;
         if (!contact_overshoot(c, units, *step, &missed) || attempt == c->max_landings || *step <= shortest) break;
         if ((status = restore_all(c, units, n_units, culprit)) != CORE_OK) break;
@@ -485,7 +495,7 @@ static int landed_step(ContactControl *c, EnergyGuard *guard, CoreUnit *units, i
 
 /* Covers [t, t_end] with contact steps */
 static int contact_steps(ContactControl *c, EnergyGuard *guard, CoreUnit *units, int n_units, double t, double t_end,
-                         int gauss_seidel, int linear, int *stepped, int *culprit)
+                         int algorithm, int linear, int *stepped, int *culprit)
 {
     int w, status;
     while (t < t_end) {
@@ -503,7 +513,7 @@ static int contact_steps(ContactControl *c, EnergyGuard *guard, CoreUnit *units,
         }
         if (last) step = t_end - t;
         if (touching) {
-            status = macro_step(units, n_units, t, step, gauss_seidel, linear, stepped, culprit);
+            status = macro_step(units, n_units, t, step, algorithm, linear, stepped, culprit);
             if (status != CORE_OK) return status;
             if (c->have_entry && swung(c, units, step)) {
                 if (c->entry_redos == c->max_landings) {
@@ -516,8 +526,8 @@ static int contact_steps(ContactControl *c, EnergyGuard *guard, CoreUnit *units,
                 continue;
             }
         } else {
-            status = landed_step(c, guard, units, n_units, t, &step, &last, &landing, gauss_seidel, linear, stepped,
-                                 culprit);
+            status =
+                landed_step(c, guard, units, n_units, t, &step, &last, &landing, algorithm, linear, stepped, culprit);
         }
         if (status != CORE_OK) return status;
         if (!guard_check(guard, units, n_units, t, step)) {
@@ -540,9 +550,9 @@ static int contact_steps(ContactControl *c, EnergyGuard *guard, CoreUnit *units,
 
 /* contact_steps, and no FMU state kept beyond the interval (its rows are recorded) */
 static int contact_advance(ContactControl *c, EnergyGuard *guard, CoreUnit *units, int n_units, double t, double t_end,
-                           int gauss_seidel, int linear, int *stepped, int *culprit)
+                           int algorithm, int linear, int *stepped, int *culprit)
 {
-    const int status = contact_steps(c, guard, units, n_units, t, t_end, gauss_seidel, linear, stepped, culprit);
+    const int status = contact_steps(c, guard, units, n_units, t, t_end, algorithm, linear, stepped, culprit);
     leave_entry(c, units, n_units);
     return status;
 }
@@ -551,15 +561,17 @@ static int contact_advance(ContactControl *c, EnergyGuard *guard, CoreUnit *unit
  * records, ... up to grid[n_points - 1]. Returns the status; *rows is the number of rows written,
  * *culprit the unit that failed (or -1). `stepped` is scratch space of n_units ints. With contacts, a
  * run also returns early (OK, fewer rows) once half the landed buffer is used, for the caller to read it. With a
- * guard, a macro step that creates too much energy stops the run (CORE_ERROR, *culprit -1, guard->failed). */
-int cosim_run(CoreUnit *units, int n_units, const double *grid, long n_points, int gauss_seidel, int linear,
-              double *table, long row_length, double *energy, int *stepped, ContactControl *contacts,
-              EnergyGuard *guard, long *rows, int *culprit)
+ * guard, a macro step that creates too much energy stops the run (CORE_ERROR, *culprit -1, guard->failed). An
+ * algorithm id the loop does not know is refused before anything is done (CORE_REFUSED). */
+int cosim_run(CoreUnit *units, int n_units, const double *grid, long n_points, int algorithm, int linear, double *table,
+              long row_length, double *energy, int *stepped, ContactControl *contacts, EnergyGuard *guard, long *rows,
+              int *culprit)
 {
     long p;
     int status;
     *rows = 0;
     *culprit = -1;
+    if (algorithm != ALGORITHM_JACOBI && algorithm != ALGORITHM_GAUSS_SEIDEL) return CORE_REFUSED;
     for (p = 0; p < n_points; p++) {
         const double t = grid[p];
         if (record(units, n_units, t, table + p * row_length, energy + p, culprit) != CORE_OK) return CORE_ERROR;
@@ -567,10 +579,10 @@ int cosim_run(CoreUnit *units, int n_units, const double *grid, long n_points, i
         if (p + 1 == n_points) break;
         if (contacts) {
             if (2 * contacts->n_landed >= contacts->landed_capacity) break;
-            status = contact_advance(contacts, guard, units, n_units, t, grid[p + 1], gauss_seidel, linear, stepped,
-                                     culprit);
+            status =
+                contact_advance(contacts, guard, units, n_units, t, grid[p + 1], algorithm, linear, stepped, culprit);
         } else {
-            status = macro_step(units, n_units, t, grid[p + 1] - t, gauss_seidel, linear, stepped, culprit);
+            status = macro_step(units, n_units, t, grid[p + 1] - t, algorithm, linear, stepped, culprit);
             if (status == CORE_OK && !guard_check(guard, units, n_units, t, grid[p + 1] - t)) status = CORE_ERROR;
         }
         if (status != CORE_OK) return status;

@@ -7,6 +7,8 @@
 #include <stdbool.h>
 #include <stddef.h>
 
+#include "fmi_status.h" /* the return codes (the FMUs' core numbers them as the harness reads them) */
+
 /* FMI 2.0's shapes */
 typedef int (*SetReal2)(void *, const unsigned *, size_t, const double *);
 typedef int (*GetReal2)(void *, const unsigned *, size_t, double *);
@@ -25,17 +27,16 @@ typedef int (*GetState)(void *, void **);
 typedef int (*SetState)(void *, void *);
 typedef int (*FreeState)(void *, void **);
 
-enum { FMI_OK = 0, FMI_WARNING = 1, FMI_DISCARD = 2, FMI_ERROR = 3 };
 /* The C type of the integers read: int32, int64 or uint64 */
 enum { INTEGER_32 = 0, INTEGER_64 = 1, UNSIGNED_64 = 2 };
 
 typedef struct {
     void *component;
     void *set_float, *get_float, *get_integer, *do_step, *set_derivatives, *get_derivatives;
-    int fmi3;           /* the function pointers are FMI 3.0's */
-    int integer_kind;   /* INTEGER_32, INTEGER_64 or UNSIGNED_64 */
-    double *last_time;  /* FMI 3.0: where fmi3DoStep's lastSuccessfulTime goes */
-    void *get_state, *set_state, *free_state;  /* NULL where the FMU cannot save its state */
+    int fmi3; /* the function pointers are FMI 3.0's */
+    int integer_kind; /* INTEGER_32, INTEGER_64 or UNSIGNED_64 */
+    double *last_time; /* FMI 3.0: where fmi3DoStep's lastSuccessfulTime goes */
+    void *get_state, *set_state, *free_state; /* NULL where the FMU cannot save its state */
 } FmiCalls;
 
 static inline int fmi_set_floats(const FmiCalls *f, const unsigned *vrs, int n, const double *values)

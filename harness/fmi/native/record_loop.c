@@ -10,21 +10,22 @@ int record_rows(const RecordUnit *unit, const double *grid, long first, long end
     for (i = first; i < end; i++) {
         if (i > 0) {
             status = fmi_do_step(&unit->calls, grid[i - 1], grid[i] - grid[i - 1]);
-            if (status == FMI_DISCARD || status >= FMI_ERROR) {
+            if (status == STATUS_DISCARD || status >= STATUS_ERROR) {
                 *done = i;
                 *where = AT_STEP;
                 return status;
             }
         }
-        status = fmi_get_floats(&unit->calls, unit->real_vrs, unit->n_real, (double *)(unit->reals + i * unit->real_stride));
-        if (status >= FMI_ERROR) {
+        status =
+            fmi_get_floats(&unit->calls, unit->real_vrs, unit->n_real, (double *)(unit->reals + i * unit->real_stride));
+        if (status >= STATUS_ERROR) {
             *done = i;
             *where = AT_FLOATS;
             return status;
         }
         if (unit->n_int) {
             status = fmi_get_integers(&unit->calls, unit->int_vrs, unit->n_int, unit->ints + i * unit->int_stride);
-            if (status >= FMI_ERROR) {
+            if (status >= STATUS_ERROR) {
                 *done = i;
                 *where = AT_INTEGERS;
                 return status;
@@ -32,5 +33,5 @@ int record_rows(const RecordUnit *unit, const double *grid, long first, long end
         }
     }
     *done = end;
-    return FMI_OK;
+    return STATUS_OK;
 }
