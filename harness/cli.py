@@ -224,10 +224,14 @@ def write_reference(scene, columns: list[str], times, path: Path) -> None:
 
 def command_export(args: argparse.Namespace) -> int:
     from harness.cosim.system import component_files, system_inputs
+    from harness.cosim.scene_file import scene_project_fmus
     from harness.cosim.ssp_export import write_ssp
     from harness.cosim.system import load_system
+    from harness.fmi.fmus import build_fmus
     from harness.output import output_file
     out = output_file(args.ssp, "--ssp", system_inputs(args.system), formats=(".ssp",), replaces=".ssp")
+    if scene_project_fmus(args.system):  # an export carries them to other machines: every platform's binaries
+        build_fmus(scene_project_fmus(args.system), every_platform=True)
     with load_system(args.system) as system:
         out = output_file(out, "--ssp", component_files(args.system, system), formats=(".ssp",), replaces=".ssp")
         write_ssp(system, out)
@@ -251,6 +255,10 @@ def command_validate(args: argparse.Namespace) -> int:
     return 1 if failed else 0
 
 
+# the scene a chart of a scene takes when --system names none
+CHART_SCENES = {"coupling": "coupled_pendulums.json", "contacts": "contact_cradle.json"}
+
+
 def command_chart(args: argparse.Namespace) -> int:
     from harness.fmi.fmus import build_fmus
     from harness.objects.registry import object_names
@@ -270,7 +278,11 @@ def command_chart(args: argparse.Namespace) -> int:
             raise HarnessError(f"--methods: {', '.join(unknown)} is not one of {', '.join(chart_methods())}")
     from harness.output import output_folder, usable_folder
     usable_folder(args.out, "--out")
-    build_fmus()
+    from harness.cosim.scene_file import scene_project_fmus
+    from harness.fmi.fmus import PROJECT_ROOT
+    scene = args.system or PROJECT_ROOT / "scenes" / CHART_SCENES.get(args.kind, "")
+    # the objects' studies take the objects' FMUs, the scenes' (coupling, contacts) the scene's
+    build_fmus(scene_project_fmus(scene) if args.kind in CHART_SCENES else objects, programs=["integrator_tables"])
     if args.kind == "work-precision":
         from harness.studies.charts import work_precision_chart
         from harness.studies.work_precision import pareto_front, settings, work_precision, write_csv
@@ -322,9 +334,8 @@ def command_chart(args: argparse.Namespace) -> int:
     elif args.kind == "coupling":
         from harness.studies.charts import coupling_chart
         from harness.studies.coupling import coupling_sweep, write_csv
-        from harness.fmi.fmus import PROJECT_ROOT
         from harness.cosim.system import load_system
-        with load_system(args.system or PROJECT_ROOT / "scenes" / "coupled_pendulums.json") as system:
+        with load_system(scene) as system:
             points = coupling_sweep(system, stop=args.stop, repeats=args.repeats, scheduler=args.scheduler,
                                     workers=args.workers)
             title = system.name[:1].upper() + system.name[1:]
@@ -336,9 +347,8 @@ def command_chart(args: argparse.Namespace) -> int:
     elif args.kind == "contacts":
         from harness.studies.charts import contact_chart
         from harness.studies.contact_study import TARGET, contact_sweep, steps_needed, write_csv
-        from harness.fmi.fmus import PROJECT_ROOT
         from harness.cosim.system import load_system
-        with load_system(args.system or PROJECT_ROOT / "scenes" / "contact_cradle.json") as system:
+        with load_system(scene) as system:
             points = contact_sweep(system, stop=args.stop, repeats=args.repeats, quick=args.quick,
                                    scheduler=args.scheduler, workers=args.workers)
             title = system.name[:1].upper() + system.name[1:]
@@ -352,13 +362,14 @@ def command_chart(args: argparse.Namespace) -> int:
 
 
 def command_plan(args: argparse.Namespace) -> int:
+    from harness.cosim.scene_file import scene_project_fmus
     from harness.cosim.system import component_files, system_inputs
     from harness.fmi.fmus import build_fmus
     from harness.studies.planner import plan_scene, write_plan_csv
     from harness.cosim.system import load_system
     from harness.output import output_file
     out = output_file(args.out, "--out", system_inputs(args.scene)) if args.out else None
-    build_fmus()
+    build_fmus(scene_project_fmus(args.scene))
     with load_system(args.scene) as system:
         if out is not None:
             out = output_file(out, "--out", component_files(args.scene, system))

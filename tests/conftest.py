@@ -90,9 +90,11 @@ def temporary_files(tmp_path_factory):
 
 @pytest.fixture(scope="session", autouse=True)
 def wasm_cache(tmp_path_factory):
-    """The live view's modules, kept for this test run (its workers and the commands they start share them)
-    rather than in the user's cache: a module is compiled once per run, not once per scene and page."""
-    folder = shared_folder(tmp_path_factory, "wasm-cache")
+    """The live view's modules, kept in the build's cache (where the build's own step put every FMU's module) or,
+    without one, for this test run (its workers and the commands they start share them), rather than in the user's
+    cache: a module is compiled once per build, not once per scene and page."""
+    built = build_dir() / "wasm" / "cache"
+    folder = built if built.is_dir() else shared_folder(tmp_path_factory, "wasm-cache")
     before = os.environ.get("PENDULUM_WASM_CACHE")
     os.environ["PENDULUM_WASM_CACHE"] = str(folder)
     yield folder

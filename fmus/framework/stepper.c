@@ -278,37 +278,38 @@ static Status end_with(const Call *call, Status status, int moved, double t_good
     return status;
 }
 
-/* Discard: the call ends at t_good, the last state it stands by. */
-static Status discard_at(const Call *call, double t_good, const char *fmt, ...)
+/* Discard: the call ends at t_good, the last state it stands by. The variadic exits take the call by value: were its
+ * address passed to them (they are never inlined), its fields would live in memory on every call's way. */
+static Status discard_at(Call call, double t_good, const char *fmt, ...)
 {
     va_list args;
     Status status;
     va_start(args, fmt);
-    status = end_with(call, STATUS_DISCARD, 1, t_good, fmt, args);
+    status = end_with(&call, STATUS_DISCARD, 1, t_good, fmt, args);
     va_end(args);
     return status;
 }
 
 #if N_CONSTRAINTS > 0
 /* Discard before the first substep: the instance as it was. */
-static Status discard_untouched(const Call *call, const char *fmt, ...)
+static Status discard_untouched(Call call, const char *fmt, ...)
 {
     va_list args;
     Status status;
     va_start(args, fmt);
-    status = end_with(call, STATUS_DISCARD, 0, call->t, fmt, args);
+    status = end_with(&call, STATUS_DISCARD, 0, call.t, fmt, args);
     va_end(args);
     return status;
 }
 #endif
 
 /* Error: the call is refused as it stands (its settings, its work), the instance as it was. */
-static Status error_refused(const Call *call, const char *fmt, ...)
+static Status error_refused(Call call, const char *fmt, ...)
 {
     va_list args;
     Status status;
     va_start(args, fmt);
-    status = end_with(call, STATUS_ERROR, 0, call->t, fmt, args);
+    status = end_with(&call, STATUS_ERROR, 0, call.t, fmt, args);
     va_end(args);
     return status;
 }
@@ -321,12 +322,12 @@ static Status discard_failed(const Call *call, double t_good, const char *method
     char reason[1100];
     refusal_reason(call->inst, t_good, refused, reason, sizeof reason);
     if (unconverged)
-        return discard_at(call, t_good,
+        return discard_at(*call, t_good,
                           "%s with h = %g: Newton's iteration did not converge (%d iterations at most, "
                           "scaled correction below %g) in the substep after t = %.17g; stopped there (last successful "
                           "time %.17g): take a smaller h",
                           method, h, NEWTON_MAX_ITERATIONS, NEWTON_TOLERANCE, t_good, t_good);
-    return discard_at(call, t_good,
+    return discard_at(*call, t_good,
                       "%s with h = %g: the state would become non-finite or singular in the substep "
                       "after t = %.17g%s; stopped there (last successful time %.17g)",
                       method, h, t_good, reason, t_good);
@@ -361,7 +362,7 @@ static double planned_substeps(double H, double h)
  * includes besides the method's). */
 static Status error_too_much_work(const Call *call, double work, const char *checks)
 {
-    return error_refused(call,
+    return error_refused(*call,
                          "communicationStepSize = %g with %s at h = %g needs %.0f right-hand-side evaluations%s "
                          "(allowed at most %.0f per call): raise h or shorten the step",
                          call->H, solver_name(call->solver), call->h, work, checks, MAX_EVALUATIONS_PER_CALL);
@@ -376,31 +377,31 @@ static Status discard_stopped_short(const Call *call, double reached)
     char reason[1100];
     refusal_reason(call->inst, reached, f->refused_known ? f->refused : NULL, reason, sizeof reason);
     if (f->out_of_budget && !adaptive_method(call->solver, call->tol)) /* a fixed-step method's checks for contacts */
-        return discard_at(call, reached,
+        return discard_at(*call, reached,
                           "%s at h = %g used its %.0f right-hand-side evaluations allowed per call, with "
                           "the checks for contacts inside its steps, at t = %.17g; stopped at the last successful time "
                           "%.17g (take shorter communication steps)",
                           method, call->h, MAX_EVALUATIONS_PER_CALL, reached, reached);
     if (f->out_of_budget)
-        return discard_at(call, reached,
+        return discard_at(*call, reached,
                           "%s with tol = %g used its %.0f right-hand-side evaluations allowed per call at "
                           "t = %.17g; stopped at the last successful time %.17g (take shorter communication steps or a "
                           "larger tol)",
                           method, call->tol, MAX_EVALUATIONS_PER_CALL, reached, reached);
     if (f->unconverged)
-        return discard_at(call, reached,
+        return discard_at(*call, reached,
                           "%s with h = %g: Newton's iteration did not converge (%d iterations at most, "
                           "scaled correction below %g) in a trial step locating an event after t = %.17g; stopped at "
                           "the last successful time %.17g: take a smaller h",
                           method, call->h, NEWTON_MAX_ITERATIONS, NEWTON_TOLERANCE, reached, reached);
     if (call->solver == SOLVER_TAYLOR)
-        return discard_at(call, reached,
+        return discard_at(*call, reached,
                           "taylor of order %d with tol = %g: the step its coefficients allow underflowed "
                           "at t = %.17g%s (tol is out of reach at this order in double precision, or the state is "
                           "non-finite or singular there: take a larger tol or a higher taylor_order); stopped at the "
                           "last successful time %.17g",
                           call->inst->s.integer[INT_taylor_order], call->tol, reached, reason, reached);
-    return discard_at(call, reached,
+    return discard_at(*call, reached,
                       "%s with tol = %g: the step size underflowed at t = %.17g%s (the state is "
                       "non-finite, singular or too stiff there); stopped at the last successful time %.17g",
                       method, call->tol, reached, reason, reached);
@@ -1002,7 +1003,7 @@ static int stiffness_refused(const EventCall *ec, double ta, const double *x)
     char message[600];
     if (ec->e.adaptive || !too_stiff(&ec->e, ta, x, message, sizeof message)) return GO_ON;
     count_work(&ec->call->inst->s.integrator, ec->call->f);
-    return discard_at(ec->call, ta, "%s; stopped there (last successful time %.17g)", message, ta);
+    return discard_at(*ec->call, ta, "%s; stopped there (last successful time %.17g)", message, ta);
 }
 #endif
 
@@ -1071,7 +1072,7 @@ static Status discard_dependent(EventCall *ec, double ta)
         back_to_call_start(ec);
         good = ec->call->t;
     }
-    return discard_at(ec->call, good,
+    return discard_at(*ec->call, good,
                       "the constraints at t = %.17g are dependent (an impact or a contact force has no "
                       "unique solution); stopped at the last successful time %.17g",
                       ta, good);
@@ -1087,7 +1088,7 @@ static int event_refused(EventCall *ec, Substep *sub)
     char message[512];
     if (free_motion_refused(call->solver, s->active_constraints, "from", sub->ta, message, sizeof message)) {
         count_work(memory, call->f);
-        return discard_at(call, sub->ta, "%s; stopped there (last successful time %.17g)", message, sub->ta);
+        return discard_at(*call, sub->ta, "%s; stopped there (last successful time %.17g)", message, sub->ta);
     }
 #if N_COMPLIANT > 0
     if (stiffness_refused(ec, sub->ta, s->real) != GO_ON) return STATUS_DISCARD; /* the contact begun */
@@ -1099,7 +1100,7 @@ static int event_refused(EventCall *ec, Substep *sub)
     sub->active_seen = s->active_constraints;
     if (sub->stalls > 2) {
         count_work(memory, call->f);
-        return discard_at(call, sub->ta,
+        return discard_at(*call, sub->ta,
                           "an event at t = %.17g recurs at once after it was handled (the state cannot "
                           "leave the constraint's boundary with %s at h = %g); stopped there (last successful time "
                           "%.17g)",
@@ -1107,7 +1108,7 @@ static int event_refused(EventCall *ec, Substep *sub)
     }
     if (memory->n_events - ec->events_before > MAX_EVENTS_PER_CALL) {
         count_work(memory, call->f);
-        return discard_at(call, sub->ta,
+        return discard_at(*call, sub->ta,
                           "%d events within this step, the most one call handles; stopped at t = %.17g "
                           "(last successful time %.17g): take a shorter communication step",
                           MAX_EVENTS_PER_CALL, sub->ta, sub->ta);
@@ -1276,7 +1277,7 @@ static Status steps_with_events(const Call *call)
     e->history = NULL;
     e->adaptive = adaptive_method(call->solver, call->tol);
     if (free_motion_refused(call->solver, s->active_constraints, "at", call->t, message, sizeof message))
-        return discard_untouched(call, "%s; nothing was done (last successful time %.17g)", message, call->t);
+        return discard_untouched(*call, "%s; nothing was done (last successful time %.17g)", message, call->t);
     e->hs = call->H / planned;
     n = e->adaptive ? 0 : (int64_t)planned;
     if (!e->adaptive) {
@@ -1315,16 +1316,16 @@ static int method_refused(const Call *call)
         inst->taylor_work =
             (double (*)[TAYLOR_SLOTS])inst->allocate(TAYLOR_SERIES + STATE_SLOTS, sizeof *inst->taylor_work);
         if (!inst->taylor_work)
-            return error_refused(call, "out of memory for the Taylor method's %d work series of %d coefficients",
+            return error_refused(*call, "out of memory for the Taylor method's %d work series of %d coefficients",
                                  TAYLOR_SERIES + STATE_SLOTS, TAYLOR_SLOTS);
     }
     if (NEEDS_TOL(call->solver) && !(call->tol > 0.0))
-        return error_refused(call,
+        return error_refused(*call,
                              "%s needs a tolerance: variable tol = 0 is out of its range (0, 1] for %s (tol = 0 "
                              "means a fixed step only for %s)",
                              solver_name(call->solver), solver_name(call->solver), FIXED_STEP_AT_ZERO_TOL);
     if (call->solver == SOLVER_GBS && call->tol > 0.0 && call->tol < GBS_SMALLEST_TOL)
-        return error_refused(call,
+        return error_refused(*call,
                              "gbs with tol = %g: out of reach in double precision (its columns agree to "
                              "rounding first); allowed for gbs: 0 (fixed step h) or [%g, 1]",
                              call->tol, GBS_SMALLEST_TOL);

@@ -36,7 +36,7 @@ from pathlib import Path
 from harness.cosim.structure import Bond, Component, Connection, System
 from harness.errors import HarnessError
 from harness.fmi.fmu_instance import is_number_text
-from harness.fmi.fmus import FMU_NAMES, locate_fmu, project_fmu_name
+from harness.fmi.fmus import FMU_NAMES, build_dir, build_fmus, locate_fmu, project_fmu_name
 
 MAX_SCENE_BYTES = 16 << 20
 
@@ -223,6 +223,23 @@ def _fmu_path(value: str, base: Path, where: str, read: _Reader) -> Path:
     return path
 
 
+def _project_fmus(specs: dict) -> list[str]:
+    """The project FMUs the components name (the rest is checked as each component is read)."""
+    return [spec["fmu"] for spec in specs.values()
+            if isinstance(spec, dict) and isinstance(spec.get("fmu"), str) and project_fmu_name(spec["fmu"])]
+
+
+def scene_project_fmus(path: str | Path) -> list[str]:
+    """The project FMUs a scene file (.json) names; none for anything else or a file that does not read
+    (loading it says why)."""
+    try:
+        data = read_json(Path(path)) if Path(path).suffix == ".json" else None
+    except HarnessError:
+        return []
+    specs = data.get("components") if isinstance(data, dict) else None
+    return _project_fmus(specs) if isinstance(specs, dict) else []
+
+
 def load_scene_file(path: Path) -> System:
     read = _Reader(path)
     data = read.object(read_json(path), "the scene", SCENE_KEYS)
@@ -235,6 +252,9 @@ def load_scene_file(path: Path) -> System:
     specs = read.object(data["components"], "\"components\"")
     if not specs:
         raise read.fail("\"components\"", "is empty")
+    missing = [name for name in _project_fmus(specs) if not (build_dir() / "fmus" / f"{name}.fmu").is_file()]
+    if missing:  # built in one go, not one at a time as each is located
+        build_fmus(missing)
     components, traces = [], {}
     for component_name, spec in specs.items():
         where = f"component {component_name!r}"

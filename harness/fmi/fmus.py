@@ -6,6 +6,7 @@ import os
 import shutil
 import subprocess
 import sys
+from collections.abc import Iterable
 from pathlib import Path
 
 from harness.errors import HarnessError
@@ -27,13 +28,32 @@ def build_dir() -> Path:
     return Path(os.environ.get("PENDULUM_BUILD_DIR", PROJECT_ROOT / "build"))
 
 
-def build_fmus(quiet: bool = True) -> None:
-    """Configure and build with CMake (incremental: cheap when nothing changed). Skipped when
+# The harness's own C loops (loaded through ctypes, harness/fmi/native_calls.py), built with any FMU.
+LOOP_TARGETS = ("cosim_core", "record_loop")
+
+
+def fmu_target(name: str) -> str:
+    """The CMake target that packs a project FMU: <name>_fmu, or <name>_fmi3_fmu for fmi3/<name>."""
+    prefix = f"{FMI3_FOLDER}/"
+    return f"{name[len(prefix):]}_fmi3_fmu" if name.startswith(prefix) else f"{name}_fmu"
+
+
+def build_fmus(fmus: Iterable[str] | None = None, quiet: bool = True, programs: Iterable[str] = (),
+               every_platform: bool | None = None) -> None:
+    """Configure and build with CMake (incremental: cheap when nothing changed): everything, or only the
+    FMUs named (project names, fmi3/<name> for FMI 3.0) and `programs` (build/bin targets) with the
+    harness's C loops. A build folder that a partial build configures first gets this machine's binaries
+    only (FMU_CROSS=OFF: the other platforms' compilers take three times as long); a build of everything
+    or one with every_platform (an export) turns the other platforms on for good. Skipped when
     PENDULUM_SKIP_BUILD=1, e.g. for a sanitizer build that must not be reconfigured."""
     if os.environ.get("PENDULUM_SKIP_BUILD") == "1":
         return
     if shutil.which("cmake") is None:
         raise HarnessError("cmake is not on PATH: it is needed to build the FMUs")
+    targets = None if fmus is None and not programs else \
+        [*dict.fromkeys(fmu_target(name) for name in fmus or ())] + [*LOOP_TARGETS, *programs]
+    if every_platform is None:
+        every_platform = targets is None
     # quiet: the tools' messages are kept back and only the first error line is reported (make's own
     # lines about an interrupt never reach the terminal)
     output = subprocess.DEVNULL if quiet else None
@@ -46,7 +66,7 @@ def build_fmus(quiet: bool = True) -> None:
     # one build at a time in a folder (parallel test workers, two commands at once): a second waits
     with lock:
         fcntl.flock(lock, fcntl.LOCK_EX)
-        _build(output, errors)
+        _build(output, errors, targets, every_platform)
 
 
 def configured_cmake(folder: Path) -> str:
@@ -79,12 +99,16 @@ def configured_alike(folder: Path, settings: dict[str, str]) -> bool:
     return all(found.get(name) == value for name, value in expected.items())
 
 
-def _build(output, errors) -> None:
+def _build(output, errors, targets: list[str] | None, every_platform: bool) -> None:
     cmake = configured_cmake(build_dir())
     settings = {"CMAKE_BUILD_TYPE": "Release", "OBJECTS_PYTHON": sys.executable}
+    if every_platform:
+        settings["FMU_CROSS"] = "ON"
+    elif "FMU_CROSS" not in cache_entries(build_dir()):
+        settings["FMU_CROSS"] = "OFF"  # configured first for a part: this machine's binaries
     configure = [cmake, "-S", str(PROJECT_ROOT), "-B", str(build_dir())] + [f"-D{name}={value}"
                                                                             for name, value in settings.items()]
-    build = [cmake, "--build", str(build_dir()), "-j2"]
+    build = [cmake, "--build", str(build_dir()), "-j2"] + (["--target", *targets] if targets else [])
     if configured_alike(build_dir(), settings):
         if run_program(build, stdout=output, stderr=errors).returncode == 0:
             return
@@ -112,7 +136,7 @@ def locate_fmu(name: str, build_if_missing: bool = True) -> Path:
                            f"(FMI 2.0; {FMI3_FOLDER}/<name> for FMI 3.0)")
     path = build_dir() / "fmus" / f"{name}.fmu"
     if not path.is_file() and build_if_missing:
-        build_fmus()
+        build_fmus([name])
     if not path.is_file():
         raise HarnessError(f"{path} does not exist: build the FMUs with cmake -S . -B build && cmake --build build")
     return path

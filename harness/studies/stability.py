@@ -99,7 +99,7 @@ def method_tables(program: str | None = None) -> dict:
     if program is None:
         program = str(build_dir() / "bin" / "integrator_tables")
         if not Path(program).is_file():
-            build_fmus()
+            build_fmus(programs=["integrator_tables"])
     return json.loads(subprocess.run([program], check=True, capture_output=True, text=True).stdout)
 
 

@@ -141,12 +141,12 @@ def _keep(folder: Path | None, key: str, module: bytes) -> None:
             Path(part).unlink(missing_ok=True)
 
 
-def build_modules(fmus: list[Path]) -> dict[Path, bytes]:
-    """Each FMU's module, from the cache or compiled side by side; an interrupt ends every compiler still
-    running, and the work folders go in any case."""
+def build_modules(fmus: list[Path], cache: Path | None = None) -> dict[Path, bytes]:
+    """Each FMU's module, from the cache (`cache`, else cache_folder()) or compiled side by side; an interrupt
+    ends every compiler still running, and the work folders go in any case."""
     clang = check_tools()
     compiler = compiler_identity(clang)
-    cache = cache_folder()
+    cache = cache if cache is not None else cache_folder()
     with ExitStack() as stack:
         works = [stack.enter_context(scratch_folder("wasm-")) for _ in fmus]
         commands = [_prepared(fmu, work, clang) for fmu, work in zip(fmus, works)]
@@ -162,3 +162,27 @@ def build_modules(fmus: list[Path]) -> dict[Path, bytes]:
             modules[fmus[k]] = module.read_bytes()
             _keep(cache, keys[k], modules[fmus[k]])
         return modules
+
+
+def main(argv: list[str] | None = None) -> int:
+    """The build's own step (CMakeLists.txt): an FMU's module written to --out and kept in --cache, the folder the
+    tests' live views start from, so that a module is compiled once per build and not again per test run."""
+    import argparse
+    import sys
+    parser = argparse.ArgumentParser(description=main.__doc__.splitlines()[0])
+    parser.add_argument("fmu", type=Path)
+    parser.add_argument("--out", type=Path, required=True, help="the module (.wasm)")
+    parser.add_argument("--cache", type=Path, required=True, help="the build's cache of modules")
+    args = parser.parse_args(argv)
+    try:
+        module = build_modules([args.fmu], args.cache)[args.fmu]
+        args.out.parent.mkdir(parents=True, exist_ok=True)
+        args.out.write_bytes(module)
+    except (HarnessError, OSError) as error:
+        print(f"harness.view.wasm: {error}", file=sys.stderr)
+        return 1
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

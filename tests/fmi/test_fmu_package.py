@@ -235,3 +235,11 @@ def test_codegen_refuses_a_duplicated_guid(tmp_path):
     path = broken_copy(tmp_path, "DoublePendulum", other, guid)
     result = run_codegen(tmp_path, [model_xml("SimplePendulum"), path])
     assert result.returncode == 1 and "share a GUID" in result.stderr
+    # the build's own check over every description (it generates each FMU alone), naming both files
+    check = subprocess.run([sys.executable, str(PROJECT_ROOT / "tools" / "fmu_codegen.py"), "--unique-guids",
+                            "--xml", str(model_xml("SimplePendulum")), str(path)], capture_output=True, text=True)
+    assert check.returncode == 1 and "share a GUID" in check.stderr and "DoublePendulum" in check.stderr
+    fine = subprocess.run([sys.executable, str(PROJECT_ROOT / "tools" / "fmu_codegen.py"), "--unique-guids",
+                           "--xml", str(model_xml("SimplePendulum")), str(model_xml("DoublePendulum"))],
+                          capture_output=True, text=True)
+    assert fine.returncode == 0, fine.stderr

@@ -5,6 +5,7 @@ under valgrind memcheck. Any report fails the test."""
 from __future__ import annotations
 
 import os
+import re
 import shutil
 import subprocess
 import sys
@@ -13,7 +14,7 @@ from pathlib import Path
 import pytest
 from fmpy import read_model_description
 
-from harness.fmi.fmus import PROJECT_ROOT, build_dir
+from harness.fmi.fmus import FMU_NAMES, PROJECT_ROOT, build_dir
 
 # the robustness tests: the calls out of place of the FMUs' bad-input suite (a NULL instance, a wrong order, a
 # freed state)
@@ -34,19 +35,79 @@ def compiler_file(name: str) -> str:
                           check=True).stdout.strip()
 
 
+def switch_values(model: str, generated: Path) -> set[tuple[str, str]]:
+    """The framework's compile-time switches (the names its #if lines test) as the model's headers set them: a
+    count (N_*) zero or positive, another value as it is, or unset. Two FMUs alike in all compile the same paths."""
+    framework = PROJECT_ROOT / "fmus" / "framework"
+    tested = {name for path in framework.glob("*.[ch]") for line in path.read_text().splitlines()
+              if line.lstrip().startswith("#if") for name in re.findall(r"\b[A-Z][A-Za-z0-9_]*\b", line)}
+    headers = "\n".join(p.read_text() for folder in (generated / model, PROJECT_ROOT / "fmus" / "models" / model)
+                        for p in folder.glob("*.h"))
+    defined = dict(re.findall(r"^#define ([A-Z][A-Za-z0-9_]*) +(\S+)", headers, re.MULTILINE))
+
+    def value(name: str) -> str:
+        if name not in defined:
+            return "unset"
+        if name.startswith("N_") and defined[name].isdigit():
+            return "0" if defined[name] == "0" else "positive"
+        return defined[name]
+    return {(name, value(name)) for name in tested}
+
+
+def covering_models(names: list[str], generated: Path, first: list[str]) -> list[str]:
+    """`first`, then fewest FMUs (greedily) that together have every value of every switch some FMU has."""
+    values = {name: switch_values(name, generated) for name in names}
+    chosen = list(first)
+    missing = set().union(*values.values()) - set().union(*(values[name] for name in chosen))
+    while missing:
+        best = max(names, key=lambda name: len(values[name] & missing))
+        chosen.append(best)
+        missing -= values[best]
+    return chosen
+
+
+# built sanitized in any case: the harness's programs (integrator_tables) and the exported scene link it
+LINKED = ["SimplePendulum"]
+
+
 @pytest.fixture(scope="module")
-def sanitized_build(tmp_path_factory) -> Path:
+def sanitized_build(fmu_paths) -> Path:
+    """The sanitized build of the FMUs that together compile every path of the framework (each value of each of its
+    compile-time switches), with the harness's loops and the SSP scene; the other FMUs are the main build's, so that
+    every test runs (under the sanitizers' runtime, but only the chosen FMUs' code instrumented)."""
     directory = PROJECT_ROOT / "build-sanitize"
     # the objects' equations derived by sympy do not depend on the build type: the main build's are taken
     # (with their times, so that make derives again only what is older than its sources)
-    if (build_dir() / "generated").is_dir():
-        shutil.copytree(build_dir() / "generated", directory / "generated", dirs_exist_ok=True)
+    shutil.copytree(build_dir() / "generated", directory / "generated", dirs_exist_ok=True)
+    chosen = covering_models(list(FMU_NAMES), build_dir() / "generated", LINKED)
+    for name in chosen:  # packed again from the sanitized binaries, whatever an earlier run left there
+        for folder in ("fmus", "fmus/fmi3"):
+            (directory / folder / f"{name}.fmu").unlink(missing_ok=True)
+    targets = [t for name in chosen for t in (f"{name}_fmu", f"{name}_fmi3_fmu")] + \
+        ["cosim_core", "record_loop", "integrator_tables", "coupled_pendulums_ssp"]
     for command in (["cmake", "-S", str(PROJECT_ROOT), "-B", str(directory), "-DCMAKE_BUILD_TYPE=Debug",
-                     "-DFMU_SANITIZE=ON", "-DFMU_CROSS=OFF",
-                     "-DFMU_WASM=OFF"], ["cmake", "--build", str(directory), "-j2"]):
+                     "-DFMU_SANITIZE=ON", "-DFMU_CROSS=OFF", "-DFMU_WASM=OFF"],
+                    ["cmake", "--build", str(directory), "-j2", "--target", *targets]):
         result = subprocess.run(command, capture_output=True, text=True)
         assert result.returncode == 0, result.stdout[-3000:] + result.stderr[-3000:]
+    for name in set(FMU_NAMES) - set(chosen):
+        for folder in ("fmus", "fmus/fmi3"):
+            (directory / folder).mkdir(parents=True, exist_ok=True)
+            shutil.copy2(build_dir() / folder / f"{name}.fmu", directory / folder / f"{name}.fmu")
     return directory
+
+
+def test_the_sanitized_fmus_cover_every_compile_time_path():
+    """The cover takes each value of each switch that some FMU has; among them constraints with and without
+    compliance, no states at all (Spring, Contact), the linear closed form and Taylor's absence."""
+    generated = build_dir() / "generated"
+    chosen = covering_models(list(FMU_NAMES), generated, LINKED)
+    every = set().union(*(switch_values(name, generated) for name in FMU_NAMES))
+    assert set().union(*(switch_values(name, generated) for name in chosen)) == every
+    assert {("N_COMPLIANT", "positive"), ("N_COMPLIANT", "0"), ("N_STATES", "0"), ("HAS_LINEAR_MODEL", "1"),
+            ("TAYLOR_AVAILABLE", "0"), ("N_CONSTRAINTS", "positive"), ("SPLIT_ACCELERATIONS", "1"),
+            ("INT_n_events", "unset")} <= every
+    assert len(chosen) < len(FMU_NAMES)
 
 
 def test_suite_runs_clean_under_address_and_undefined_behaviour_sanitizers(sanitized_build):

@@ -144,26 +144,34 @@ def test_run_starts_in_a_folder_never_built(tmp_path):
         target.write_text(f"#!/bin/sh\n{body}")
         target.chmod(0o755)
     # only what the script uses: no apt-get or npm, so it installs nothing from the network
-    for tool in ("bash", "sh", "sed", "cat", "sha256sum", "cut", "mkdir", "id", "dirname", "nproc"):
+    for tool in ("bash", "sh", "sed", "cat", "sha256sum", "cut", "mkdir", "id", "dirname", "basename", "nproc"):
         (tools / tool).symlink_to(shutil.which(tool))
     result = subprocess.run([str(tmp_path / "run"), "demo", "--out", "x"], capture_output=True, text=True,
                             env={"PATH": str(tools), "HOME": str(tmp_path)})
     assert result.returncode == 0, result.stdout + result.stderr
     lines = calls.read_text().splitlines()
-    assert lines[-3].startswith("cmake -S . -B build") and lines[-2].startswith("cmake --build build"), lines
     assert lines[-1] == "python -m harness demo --out x", lines
-    # before the build: bytecode for the environment (once: where its packages are, then them) and for the
+    # the demo builds what it shows itself (harness demo, for this machine): ./run builds nothing for it
+    assert not any(line.startswith("cmake") for line in lines), lines
+    # before it: bytecode for the environment (once: where its packages are, then them) and for the
     # project's modules (each time)
-    assert any("sysconfig" in line for line in lines[:-3])
-    assert [line for line in lines[:-3] if "compileall" in line] == \
+    assert any("sysconfig" in line for line in lines[:-1])
+    assert [line for line in lines[:-1] if "compileall" in line] == \
         ["python -m compileall -q -j0 ", "python -m compileall -q -j0 harness tools benchmarks tests"], lines
     calls.unlink()
     again = subprocess.run([str(tmp_path / "run"), "demo", "--out", "x"], capture_output=True, text=True,
                            env={"PATH": str(tools), "HOME": str(tmp_path)})
     assert again.returncode == 0, again.stdout + again.stderr
     lines = calls.read_text().splitlines()
-    assert not any("sysconfig" in line for line in lines) and len(lines) == 4, lines
-    assert lines[0] == "python -m compileall -q -j0 harness tools benchmarks tests", lines
+    assert lines == ["python -m compileall -q -j0 harness tools benchmarks tests", "python -m harness demo --out x"]
+    calls.unlink()
+    # the tests: every FMU, for every platform whose compiler is installed, before pytest starts
+    tests = subprocess.run([str(tmp_path / "run"), "test", "-x"], capture_output=True, text=True,
+                           env={"PATH": str(tools), "HOME": str(tmp_path)})
+    assert tests.returncode == 0, tests.stdout + tests.stderr
+    lines = calls.read_text().splitlines()
+    assert lines[-3] == "cmake -S . -B build -DCMAKE_BUILD_TYPE=Release -DFMU_CROSS=ON", lines
+    assert lines[-2] == "cmake --build build -j2" and lines[-1].startswith("python -m pytest -n "), lines
 
 
 @pytest.mark.parametrize("cache, makefile, fails_once, calls_made", [
@@ -187,7 +195,8 @@ def test_a_build_folder_configured_alike_is_only_built(tmp_path, monkeypatch, ca
     recorded.write_text(f'#!/bin/sh\necho "$*" >> {log}\n{fail}')
     recorded.chmod(0o755)
     entries = {"CMAKE_COMMAND:INTERNAL": str(recorded), "CMAKE_BUILD_TYPE:STRING": "Release",
-               "OBJECTS_PYTHON:UNINITIALIZED": sys.executable, "CMAKE_HOME_DIRECTORY:INTERNAL": str(PROJECT_ROOT)}
+               "OBJECTS_PYTHON:UNINITIALIZED": sys.executable, "CMAKE_HOME_DIRECTORY:INTERNAL": str(PROJECT_ROOT),
+               "FMU_CROSS:BOOL": "ON"}
     for key, value in cache.items():  # replaces the entry of the same name, whatever its type
         entries = {k: v for k, v in entries.items() if k.split(":")[0] != key.split(":")[0]} | {key: value}
     (tmp_path / "CMakeCache.txt").write_text("".join(f"{key}={value}\n" for key, value in entries.items()))
@@ -222,3 +231,42 @@ def test_an_import_that_ends_the_process_still_names_what_was_missing(tmp_path):
     result = subprocess.run([str(python), str(ROOT / "tools" / "generator_imports.py"), "crashing"],
                             capture_output=True, text=True, env={**os.environ, "PYTHONPATH": str(tmp_path)})
     assert (result.returncode, result.stdout) == (1, "numpy\n"), result
+
+
+@pytest.mark.parametrize("cross, fmus, every_platform, calls_made", [
+    # a folder that a part configures first: this machine's binaries only, the targets asked for
+    (None, ["SimplePendulum", "fmi3/Spring"], None,
+     ["-DFMU_CROSS=OFF", "--target SimplePendulum_fmu Spring_fmi3_fmu cosim_core record_loop"]),
+    ("OFF", None, None, ["-DFMU_CROSS=ON", ""]),  # everything: every platform, for good
+    ("ON", ["SimplePendulum"], None, ["--target SimplePendulum_fmu cosim_core record_loop"]),  # kept as it is
+    ("OFF", ["Spring"], True, ["-DFMU_CROSS=ON", "--target Spring_fmu cosim_core record_loop"]),  # an export
+])
+def test_a_part_is_built_for_this_machine_and_everything_for_every_platform(tmp_path, monkeypatch, cross, fmus,
+                                                                            every_platform, calls_made):
+    """A newcomer's demo waits for the FMUs it shows and this machine's binaries; the tests, the benchmarks
+    and an export ask for the other platforms' binaries too (FMU_CROSS)."""
+    from harness.fmi.fmus import PROJECT_ROOT, build_fmus
+    log = tmp_path / "calls.log"
+    tools = tmp_path / "bin"
+    tools.mkdir()
+    (tools / "cmake").write_text(f'#!/bin/sh\necho "$*" >> {log}\n')
+    (tools / "cmake").chmod(0o755)
+    monkeypatch.setenv("PATH", f"{tools}{os.pathsep}{os.environ['PATH']}")
+    folder = tmp_path / "build"
+    folder.mkdir()
+    if cross is not None:
+        (folder / "CMakeCache.txt").write_text(
+            f"CMAKE_COMMAND:INTERNAL={tools / 'cmake'}\nCMAKE_BUILD_TYPE:STRING=Release\n"
+            f"OBJECTS_PYTHON:FILEPATH={sys.executable}\nCMAKE_HOME_DIRECTORY:INTERNAL={PROJECT_ROOT}\n"
+            f"FMU_CROSS:BOOL={cross}\n")
+        (folder / "Makefile").write_text("all:\n")
+    monkeypatch.setenv("PENDULUM_BUILD_DIR", str(folder))
+    monkeypatch.delenv("PENDULUM_SKIP_BUILD", raising=False)
+    build_fmus(fmus, every_platform=every_platform)
+    calls = log.read_text().splitlines()
+    assert len(calls) == len(calls_made), calls
+    for call, expected in zip(calls, calls_made):
+        if expected.startswith("-D"):
+            assert call.startswith(f"-S {PROJECT_ROOT} -B {folder} ") and call.endswith(expected), calls
+        else:
+            assert call == f"--build {folder} -j2" + (f" {expected}" if expected else ""), calls

@@ -9,6 +9,7 @@ from __future__ import annotations
 import csv
 import json
 import os
+import re
 import shutil
 import subprocess
 import sys
@@ -57,6 +58,23 @@ def harness(copy, *arguments) -> subprocess.CompletedProcess:
 def test_cmake_builds_the_dropped_object(project_with_a_new_object):
     fmu = project_with_a_new_object / "build" / "fmus" / "Trolley.fmu"
     assert fmu.is_file()
+
+
+def test_one_fmu_builds_without_deriving_the_others(project_with_a_new_object, tmp_path):
+    """A newcomer's demo waits on its own FMUs only: in a folder never built, one FMU's target derives and
+    describes that object and no other (make's dry run lists what it would do)."""
+    copy = project_with_a_new_object
+    subprocess.run(["cmake", "-G", "Unix Makefiles", "-S", str(copy), "-B", str(tmp_path), "-DFMU_CROSS=OFF",
+                    "-DFMU_WASM=OFF", f"-DOBJECTS_PYTHON={sys.executable}"], check=True, capture_output=True)
+    # -k: a dry run makes no object files, so the link steps after them stop it; it lists the rest all the same
+    dry = subprocess.run(["cmake", "--build", str(tmp_path), "--target", "Trolley_fmu", "--", "-n", "-k"],
+                         capture_output=True, text=True)
+    assert set(re.findall(r"harness\.objects\.generate \S*/(\w+)\.toml", dry.stdout)) == {"Trolley"}
+    assert set(re.findall(r"fmu_codegen\.py .*--xml \S*/(\w+)/modelDescription\.xml", dry.stdout)) == {"Trolley"}
+    everything = subprocess.run(["cmake", "--build", str(tmp_path), "--", "-n", "-k"], capture_output=True,
+                                text=True)
+    assert set(re.findall(r"harness\.objects\.generate \S*/(\w+)\.toml", everything.stdout)) == \
+        {"Trolley", "SimplePendulum"}  # the whole build derives every object
 
 
 def test_validate_proves_it(project_with_a_new_object):
