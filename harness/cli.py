@@ -230,8 +230,9 @@ def command_export(args: argparse.Namespace) -> int:
     from harness.fmi.fmus import build_fmus
     from harness.output import output_file
     out = output_file(args.ssp, "--ssp", system_inputs(args.system), formats=(".ssp",), replaces=".ssp")
-    if scene_project_fmus(args.system):  # an export carries them to other machines: every platform's binaries
-        build_fmus(scene_project_fmus(args.system), every_platform=True)
+    named = scene_project_fmus(args.system)
+    if named:  # an export carries them to other machines: every platform's binaries
+        build_fmus(named, every_platform=True)
     with load_system(args.system) as system:
         out = output_file(out, "--ssp", component_files(args.system, system), formats=(".ssp",), replaces=".ssp")
         write_ssp(system, out)
